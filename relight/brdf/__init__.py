@@ -1,0 +1,1 @@
+"""BRDF lobes, their coefficients and spec parsing."""

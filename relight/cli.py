@@ -1,0 +1,223 @@
+"""The ``relight`` command line (a contract other parts and external checks rely on).
+
+    relight prefilter ENVMAP --brdf SPEC [--epsilon E | --order F] [--size S] --out OUT.exr [--report R.json]
+    relight reference ENVMAP --brdf SPEC --size S --out OUT.exr
+    relight compare A.exr B.exr [--json]
+    relight info ENVMAP
+
+Errors: exit status 2 and one clear line on stderr. Further commands (service, SHRM rendering) register themselves
+through ``COMMAND_PROVIDERS``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from relight.errors import InputError, RelightError
+
+Handler = Callable[[argparse.Namespace], int]
+
+#: Modules with a ``register(subparsers)`` function adding more subcommands (skipped when not importable).
+COMMAND_PROVIDERS = ["relight.cli_shrm", "client.cli"]
+
+
+def _parse_order(text: str) -> tuple[int, int | None]:
+    parts = text.split(",")
+    try:
+        if len(parts) == 1:
+            return int(parts[0]), None
+        if len(parts) == 2:
+            return int(parts[0]), int(parts[1])
+    except ValueError:
+        pass
+    raise InputError(f"--order must be F or F,P with integers, got {text!r}")
+
+
+def _load_env(path: str) -> Any:
+    from relight.envmap import read_envmap
+
+    return read_envmap(path)
+
+
+def cmd_prefilter(args: argparse.Namespace) -> int:
+    from relight.brdf.spec import parse_brdf
+    from relight.envmap import write_exr
+    from relight.prefilter import prefilter_radial
+
+    brdf = parse_brdf(args.brdf)
+    env = _load_env(args.envmap)
+    order = p_order = None
+    if args.order is not None:
+        order, p_order = _parse_order(args.order)
+    if not getattr(brdf, "radially_symmetric", False) or p_order:
+        try:
+            shrm_cli = importlib.import_module("relight.cli_shrm")
+        except ImportError as exc:
+            raise InputError(f"BRDF {args.brdf!r} is not radially symmetric and SHRM support is unavailable") from exc
+        result: int = shrm_cli.prefilter_shrm(args, brdf, env, order, p_order)
+        return result
+    res = prefilter_radial(env.pixels, brdf, epsilon=args.epsilon, order=order, size=args.size)
+    res.report["input"].update(
+        {"path": str(args.envmap), "negatives_clamped": env.negatives_clamped, "min_negative": env.min_negative}
+    )
+    write_exr(args.out, res.map.astype(np.float32), attributes={"relight.report": json.dumps(res.report)})
+    if args.report:
+        Path(args.report).write_text(json.dumps(res.report, indent=2))
+    o = res.report["orders"]
+    print(
+        f"wrote {args.out}: {res.map.shape[0]}x{res.map.shape[1]}, F_B={o['F_B']}, predicted relative RMS "
+        f"{o['rms_min_of_errors']:.3g} (App. B bound {o['rms_appendix_b']:.3g}), {res.report['total_seconds']:.3f} s"
+    )
+    return 0
+
+
+def cmd_reference(args: argparse.Namespace) -> int:
+    from relight.brdf.spec import parse_brdf
+    from relight.envmap import write_exr
+    from relight.reference import reference_radial
+
+    brdf = parse_brdf(args.brdf)
+    env = _load_env(args.envmap)
+    if args.view is not None:
+        try:
+            shrm_cli = importlib.import_module("relight.cli_shrm")
+        except ImportError as exc:
+            raise InputError("view-dependent references need SHRM support") from exc
+        result: int = shrm_cli.reference_view(args, brdf, env)
+        return result
+    if not getattr(brdf, "radially_symmetric", False):
+        raise InputError(f"BRDF {args.brdf!r} is view dependent: give --view X,Y,Z")
+    out = reference_radial(env.pixels, brdf, args.size, epsilon=args.truncation)
+    write_exr(args.out, out.astype(np.float32))
+    print(f"wrote {args.out}: {out.shape[0]}x{out.shape[1]} (angular-domain reference)")
+    return 0
+
+
+def _read_map(path: str) -> Any:
+    from relight.envmap import read_image
+
+    pixels, _ = read_image(path)
+    return np.asarray(pixels, dtype=np.float64)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from relight.metrics import compare
+
+    a, b = _read_map(args.a), _read_map(args.b)
+    if a.shape != b.shape:
+        raise InputError(f"images differ in size: {a.shape[1]}x{a.shape[0]} vs {b.shape[1]}x{b.shape[0]}")
+    res = compare(a, b)
+    if args.json:
+        print(json.dumps(res, indent=2))
+    else:
+        print(
+            f"relative RMS {res['relative_rms']:.4g}  max error {res['max_abs_error']:.4g} "
+            f"({res['max_error_relative_to_peak']:.3g} of peak)  energy error {res['energy_error']:+.4g}"
+        )
+    return 0
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    from relight.envmap import read_envmap
+    from relight.prefilter import project_lighting
+
+    env = read_envmap(args.envmap)
+    px = env.pixels
+    lmax = min(args.lmax, px.shape[0] - 1)
+    lighting = project_lighting(px, lmax)
+    spectrum = lighting.band_energy()
+    captured = np.cumsum(spectrum) / lighting.total_energy if lighting.total_energy > 0 else np.zeros_like(spectrum)
+    info = {
+        "path": args.envmap,
+        "format": env.source_format,
+        "width": int(px.shape[1]),
+        "height": int(px.shape[0]),
+        "min": float(px.min()),
+        "max": float(px.max()),
+        "mean": float(px.mean()),
+        "negatives_clamped": env.negatives_clamped,
+        "min_negative": env.min_negative,
+        "sh_power_spectrum": [float(x) for x in spectrum],
+        "energy_captured": [float(x) for x in captured],
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        print(f"{args.envmap}: {info['width']}x{info['height']} {info['format']}")
+        print(f"  range [{info['min']:.4g}, {info['max']:.4g}], mean {info['mean']:.4g}")
+        print(f"  negative texel values clamped: {env.negatives_clamped} (most negative {env.min_negative:.3g})")
+        print("  luminance energy captured by order F:")
+        for f in [0, 1, 2, 4, 8, 16, 32, 64, 128, 256, 511]:
+            if f <= lmax:
+                print(f"    F={f:4d}: {captured[f]:.6f}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="relight", description=__doc__.split("\n\n")[0] if __doc__ else None)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    pf = sub.add_parser("prefilter", help="frequency-space prefilter (reflection map or SHRM)")
+    pf.add_argument("envmap")
+    pf.add_argument("--brdf", required=True, help="lambert, phong:s=32, microfacet:sigma=0.2, ... or a JSON file")
+    g = pf.add_mutually_exclusive_group()
+    g.add_argument("--epsilon", type=float, help="the paper's tolerance: energy fraction not captured")
+    g.add_argument("--order", help="explicit order F (or F,P for SHRMs)")
+    pf.add_argument("--size", type=int, help="output rows S (S x 2S); default S ~ 10 F")
+    pf.add_argument("--out", required=True)
+    pf.add_argument("--report", help="write the JSON report here")
+    pf.set_defaults(func=cmd_prefilter)
+
+    rf = sub.add_parser("reference", help="angular-domain brute-force reference")
+    rf.add_argument("envmap")
+    rf.add_argument("--brdf", required=True)
+    rf.add_argument("--size", type=int, required=True)
+    rf.add_argument("--view", help="X,Y,Z view direction for view-dependent BRDFs")
+    rf.add_argument("--truncation", type=float, default=1e-4, help="lobe energy fraction dropped (App. D)")
+    rf.add_argument("--out", required=True)
+    rf.set_defaults(func=cmd_reference)
+
+    cp = sub.add_parser("compare", help="relative RMS / max / energy error of A against reference B")
+    cp.add_argument("a")
+    cp.add_argument("b")
+    cp.add_argument("--json", action="store_true")
+    cp.set_defaults(func=cmd_compare)
+
+    inf = sub.add_parser("info", help="size, range, negatives and SH spectrum of an environment map")
+    inf.add_argument("envmap")
+    inf.add_argument("--lmax", type=int, default=64)
+    inf.add_argument("--json", action="store_true")
+    inf.set_defaults(func=cmd_info)
+
+    for name in COMMAND_PROVIDERS:
+        try:
+            mod = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name is not None and (name == exc.name or name.startswith(exc.name + ".")):
+                continue  # the provider is not installed; a missing dependency inside it is an error
+            raise
+        mod.register(sub)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        code: int = args.func(args)
+        return code
+    except (RelightError, OSError) as exc:
+        print(f"relight: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,111 @@
+"""The project's direction and pixel conventions, written once.
+
+See ``docs/conventions.md`` for the prose version. Summary:
+
+* Lat-long (equirectangular) maps follow three.js ``equirectUv``, +Y up. For an ``H x W`` map, row ``i``
+  (0 = top row of the file) and column ``j``::
+
+      elev = pi/2 - (i + 0.5) * pi / H        phi = ((j + 0.5) / W - 0.5) * 2 pi
+      d    = (cos(elev) cos(phi), sin(elev), cos(elev) sin(phi))
+
+* Spherical-harmonic angles: polar angle ``theta`` is measured from +Y (``theta = pi/2 - elev``), so row ``i``
+  is the ring ``theta_i = (i + 0.5) pi / H`` (ducc0 geometry ``F1``); azimuth ``phi`` as above, so column ``j``
+  sits at ``phi_j = -pi + (j + 0.5) 2 pi / W`` (ducc0 ``phi0 = pi / W - pi``).
+  Equivalently the SH frame is ``(x', y', z') = (X, Z, Y)``: ``x' = sin(theta) cos(phi)``,
+  ``y' = sin(theta) sin(phi)``, ``z' = cos(theta)``.
+* The paper's (alpha, beta) for the reflection vector R are exactly these (theta, phi) of R.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+#: Rec. 709 / sRGB luminance weights (ITU-R BT.709-6, item 3.2).
+LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
+
+
+def ring_thetas(height: int) -> FloatArray:
+    """Polar angle from +Y of each row's centre: ``theta_i = (i + 0.5) pi / H``."""
+    if height <= 0:
+        raise ValueError(f"height must be positive, got {height}")
+    return (np.arange(height) + 0.5) * np.pi / height
+
+
+def column_phis(width: int) -> FloatArray:
+    """Azimuth of each column's centre: ``phi_j = ((j + 0.5) / W - 0.5) 2 pi``."""
+    if width <= 0:
+        raise ValueError(f"width must be positive, got {width}")
+    return ((np.arange(width) + 0.5) / width - 0.5) * 2.0 * np.pi
+
+
+def phi0(width: int) -> float:
+    """ducc0's ``phi0`` (azimuth of the first column) for a pixel-centred row of ``width`` pixels."""
+    return float(np.pi / width - np.pi)
+
+
+def angles_to_dirs(theta: NDArray[np.floating], phi: NDArray[np.floating]) -> FloatArray:
+    """World directions (..., 3) for SH angles (theta from +Y, phi as in the lat-long map)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    phi = np.asarray(phi, dtype=np.float64)
+    st = np.sin(theta)
+    return np.stack(np.broadcast_arrays(st * np.cos(phi), np.cos(theta), st * np.sin(phi)), axis=-1)
+
+
+def dirs_to_angles(d: NDArray[np.floating]) -> tuple[FloatArray, FloatArray]:
+    """(theta, phi) of world directions (..., 3); they need not be normalised."""
+    d = np.asarray(d, dtype=np.float64)
+    if d.shape[-1:] != (3,):
+        raise ValueError(f"directions must have a trailing axis of length 3, got shape {d.shape}")
+    n = np.linalg.norm(d, axis=-1)
+    if np.any(n == 0):
+        raise ValueError("zero-length direction")
+    theta = np.arccos(np.clip(d[..., 1] / n, -1.0, 1.0))
+    phi = np.arctan2(d[..., 2], d[..., 0])
+    return theta, phi
+
+
+def latlong_dirs(height: int, width: int) -> FloatArray:
+    """Unit direction of every pixel centre of an ``H x W`` lat-long map, shape (H, W, 3)."""
+    t = ring_thetas(height)[:, None]
+    p = column_phis(width)[None, :]
+    return angles_to_dirs(t, p)
+
+
+def dirs_to_pixel(d: NDArray[np.floating], height: int, width: int) -> tuple[FloatArray, FloatArray]:
+    """Continuous pixel coordinates (row, col) of directions, pixel centres at integer + 0.5 - 0.5.
+
+    Returns ``(y, x)`` such that pixel ``(i, j)``'s centre maps to ``(i, j)`` exactly.
+    """
+    theta, phi = dirs_to_angles(d)
+    y = theta / np.pi * height - 0.5
+    x = (phi / (2.0 * np.pi) + 0.5) * width - 0.5
+    return y, x
+
+
+def pixel_solid_angles(height: int, width: int) -> FloatArray:
+    """Exact solid angle of each row's pixels (H,): ``(2 pi / W) (cos theta_top - cos theta_bottom)``."""
+    edges = np.arange(height + 1) * np.pi / height
+    return (2.0 * np.pi / width) * (np.cos(edges[:-1]) - np.cos(edges[1:]))
+
+
+def luminance(rgb: NDArray[np.floating]) -> FloatArray:
+    """Rec. 709 luminance of (..., 3) linear RGB (a single channel (...,) passes through)."""
+    rgb = np.asarray(rgb, dtype=np.float64)
+    if rgb.ndim >= 1 and rgb.shape[-1] == 3:
+        return np.asarray(rgb @ LUMINANCE_WEIGHTS, dtype=np.float64)
+    return np.asarray(rgb, dtype=np.float64)
+
+
+def check_latlong_shape(shape: tuple[int, ...]) -> tuple[int, int]:
+    """Validate an (H, W[, C]) lat-long shape with W = 2H; return (H, W)."""
+    if len(shape) < 2:
+        raise ValueError(f"a lat-long map needs at least 2 dimensions, got shape {shape}")
+    h, w = int(shape[0]), int(shape[1])
+    if h == 0 or w == 0:
+        raise ValueError(f"a lat-long map cannot be empty, got {w} x {h}")
+    if w != 2 * h:
+        raise ValueError(f"a lat-long map must have width = 2 x height, got {w} x {h}")
+    return h, w
