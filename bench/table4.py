@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from relight import sh
-from relight.brdf.models import Phong
+from relight.brdf.radial import Phong
 from relight.envmap import read_envmap, resample_latlong
 from relight.metrics import relative_rms
 from relight.prefilter import prefilter_radial

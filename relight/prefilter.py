@@ -89,9 +89,10 @@ def project_lighting(
     """``L_lm`` to order lmax by quadrature, and the total luminance energy of the map (seed 000 §5.1)."""
     h, w = check_latlong_shape(pixels.shape)
     alm = sh.project(pixels, lmax, backend=backend, weights=weights)
-    lum = np.asarray(pixels, dtype=np.float64) @ LUMINANCE_WEIGHTS
+    px = np.asarray(pixels)
+    lum = px @ LUMINANCE_WEIGHTS.astype(px.dtype)  # float32 input stays float32 here: an energy estimate
     ring_w = sh.quadrature_weights(h, weights)
-    total = float(ring_w @ (lum * lum).mean(axis=1))
+    total = float(ring_w @ np.square(lum, dtype=np.float64).mean(axis=1))
     return LightingSpectrum(alm=alm, lmax=lmax, total_energy=total)
 
 
@@ -201,10 +202,6 @@ def prefilter_radial(
 
     l_idx, _ = sh.lm_arrays(f_b)
     factors = transfer[: f_b + 1] * window_factors(f_b, window)[:, None]  # (F_B+1, C)
-    # Ringing bound: B >= min(u_F, 0) * int L dOmega, with int L dOmega = sqrt(4 pi) L_00 (Y_00 = 1/sqrt(4 pi)).
-    kernel_min = ringing_minimum(factors)
-    flux = np.sqrt(4.0 * np.pi) * lighting.alm[:, 0].real
-    ringing_floor = kernel_min.min() * flux
     alm = sh.truncate(lighting.alm, lighting.lmax, f_b)
     b_lm = alm * factors[l_idx].T  # (3, nalm): grey lobes broadcast over RGB
     timer.lap("convolution")
@@ -212,6 +209,12 @@ def prefilter_radial(
     s = size if size is not None else size_for_order(f_b)
     out = sh.synthesize(b_lm, f_b, s, 2 * s, backend=backend)
     timer.lap("synthesis")
+
+    # Ringing bound: B >= min(u_F, 0) * int L dOmega, with int L dOmega = sqrt(4 pi) L_00 (Y_00 = 1/sqrt(4 pi)).
+    kernel_min = ringing_minimum(factors)
+    flux = np.sqrt(4.0 * np.pi) * lighting.alm[:, 0].real
+    ringing_floor = kernel_min.min() * flux
+    timer.lap("ringing_bound")
 
     cube = None
     if cube_size is not None:

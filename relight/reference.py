@@ -36,7 +36,11 @@ def truncation_angle(lobe: RadialLobe, epsilon: float) -> float:
         if total[c] <= 0.0:
             continue
         k = int(np.searchsorted(cum[:, c], (1.0 - epsilon) * total[c]))
-        out = max(out, float(theta[min(k + 1, theta.size - 1)]))
+        k = min(max(k, 1), theta.size - 1)
+        # linear interpolation inside the bracketing grid step
+        c0, c1 = cum[k - 1, c], cum[k, c]
+        frac = 0.0 if c1 <= c0 else ((1.0 - epsilon) * total[c] - c0) / (c1 - c0)
+        out = max(out, float(theta[k - 1] + frac * (theta[k] - theta[k - 1])))
     return out
 
 

@@ -249,21 +249,27 @@ def project(
     """
     if lmax < 0:
         raise ValueError(f"lmax must be >= 0, got {lmax}")
-    stack, chan = _as_stack(field)
-    h, w = check_latlong_shape(stack.shape[1:])
+    a = np.asarray(field)
+    if a.ndim not in (2, 3):
+        raise ValueError(f"expected an (H, W) or (H, W, C) map, got shape {a.shape}")
+    chan = a.ndim == 3
+    h, w = check_latlong_shape(a.shape)
     ring_w = quadrature_weights(h, weights)
     if backend == "ducc0":
-        weighted = stack * (ring_w / w)[None, :, None]
-        alm = np.concatenate(
+        planes = [a[..., k] for k in range(a.shape[2])] if chan else [a]
+        # Each channel is a strided view (no copy for float64 input); the ring weights go in as ducc0's
+        # ``ringfactor``, so ``a_lm = sum_rings (w_ring / W) sum_phi f e^{-i m phi} Pbar_lm``.
+        alm = np.stack(
             [
                 ducc0.sht.adjoint_synthesis_2d(
-                    map=weighted[k : k + 1], spin=0, lmax=lmax, geometry="F1", phi0=phi0(w),
-                    nthreads=nthreads or NTHREADS,
-                )
-                for k in range(weighted.shape[0])
+                    map=np.asarray(plane, dtype=np.float64)[None], spin=0, lmax=lmax, geometry="F1",
+                    phi0=phi0(w), ringfactor=ring_w / w, nthreads=nthreads or NTHREADS,
+                )[0]
+                for plane in planes
             ]
         )
     elif backend == "numpy":
+        stack, _ = _as_stack(a)
         alm = _project_numpy(stack, lmax, ring_w)
     else:
         raise ValueError(f"unknown backend {backend!r}; use 'ducc0' or 'numpy'")
