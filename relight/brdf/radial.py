@@ -11,7 +11,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -85,18 +85,27 @@ class Lobe1D(RadialLobe):
     """A tabulated (or callable) lobe ``u(cos theta)`` about R or N (seed 000 §3.1, "any 1-D lobe").
 
     ``table``: samples ``(t_k, u_k)`` with strictly increasing ``t_k`` in [-1, 1] and finite ``u_k`` (grey) or
-    ``u_k`` rows of 3 (RGB); linear interpolation, 0 outside ``[t_0, t_last]``.
+    ``u_k`` rows of 3 (RGB); linear interpolation, 0 outside ``[t_0, t_last]``. The spec form
+    ``{"t": [...], "u": [...], "center": "R" | "N"}`` (``u`` of shape (n,) or (n, 3)) or ``{"table": rows}`` is
+    accepted too.
     """
 
     kind: ClassVar[str] = "lobe1d"
 
     def __init__(
         self,
-        table: Sequence[Sequence[float]] | NDArray[np.floating] | None = None,
+        table: Mapping[str, Any] | Sequence[Sequence[float]] | NDArray[np.floating] | Callable[[FloatArray], FloatArray]
+        | None = None,
         *,
         func: Callable[[FloatArray], FloatArray] | None = None,
         center: str = "R",
     ) -> None:
+        if isinstance(table, Mapping):
+            table, center = _lobe1d_rows(table, center)
+        elif callable(table):  # Lobe1D(callable)
+            if func is not None:
+                raise InputError("lobe1d needs exactly one of a table of (t, u) samples or a callable")
+            table, func = None, table
         if (table is None) == (func is None):
             raise InputError("lobe1d needs exactly one of a table of (t, u) samples or a callable")
         if center not in ("R", "N"):
@@ -132,3 +141,28 @@ class Lobe1D(RadialLobe):
             raise InputError("a lobe1d given as a Python callable cannot be serialised or cached; give a table")
         table = np.concatenate([self.t[:, None], self.values], axis=1)
         return {"center": self.center, "table": table.tolist()}
+
+
+def _lobe1d_rows(spec: Mapping[str, Any], center: str) -> tuple[FloatArray, str]:
+    """Rows ``(t, u...)`` from ``{"t", "u"}`` or ``{"table"}`` (optionally ``"center"``)."""
+    valid = {"t", "u", "table", "center"}
+    if set(spec) - valid:
+        raise InputError(f"lobe1d: unknown key {sorted(set(spec) - valid)[0]!r}; valid keys are {sorted(valid)}")
+    center = str(spec.get("center", center))
+    if "table" in spec:
+        if "t" in spec or "u" in spec:
+            raise InputError("lobe1d: give either table or t and u, not both")
+        try:
+            return np.asarray(spec["table"], dtype=np.float64), center
+        except (TypeError, ValueError):
+            raise InputError("lobe1d table must be rows of numbers (t, u) or (t, r, g, b)") from None
+    if "t" not in spec or "u" not in spec:
+        raise InputError("lobe1d: needs both t and u (or a table)")
+    try:
+        t = np.asarray(spec["t"], dtype=np.float64)
+        u = np.asarray(spec["u"], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError("lobe1d: t and u must be arrays of numbers") from None
+    if t.ndim != 1 or u.ndim not in (1, 2) or u.shape[0] != t.size:
+        raise InputError(f"lobe1d: t must be 1-D and u have one row per t, got shapes {t.shape} and {u.shape}")
+    return np.column_stack([t, u]), center
