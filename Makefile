@@ -1,5 +1,5 @@
 # relight: the two commands of the README, each creating its own virtual environment.
-#   make run   -- the main job
+#   make run   -- the main job: the service on http://127.0.0.1:8000 with the sample maps loaded
 #   make test  -- lint, type-check and the whole test suite (what CI runs)
 PYTHON ?= python3
 VENV   ?= .venv
@@ -15,13 +15,13 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/relight prefilter data/envmaps/city.exr --brdf phong:s=64 --epsilon 0.001 --out out/city_phong64.exr --report out/city_phong64.json
+	$(BIN)/relight serve --host 127.0.0.1 --port 8000 --data .relight-data
 
 lint: $(STAMP)
-	$(BIN)/ruff check relight tests bench
+	$(BIN)/ruff check relight server worker client tests bench
 
 typecheck: $(STAMP)
-	$(BIN)/mypy relight
+	$(BIN)/mypy relight server worker client
 
 pytest: $(STAMP)
 	$(BIN)/python -m pytest -q --timeout=900

@@ -21,12 +21,13 @@ from typing import Any
 
 import numpy as np
 
+from relight.brdf.base import RadialLobe
 from relight.errors import InputError, RelightError
 
 Handler = Callable[[argparse.Namespace], int]
 
 #: Modules with a ``register(subparsers)`` function adding more subcommands (skipped when not importable).
-COMMAND_PROVIDERS = ["relight.cli_shrm", "client.cli"]
+COMMAND_PROVIDERS = ["relight.cli_shrm", "relight.cli_plan", "client.cli"]
 
 
 def _parse_order(text: str) -> tuple[int, int | None]:
@@ -57,7 +58,7 @@ def cmd_prefilter(args: argparse.Namespace) -> int:
     order = p_order = None
     if args.order is not None:
         order, p_order = _parse_order(args.order)
-    if not getattr(brdf, "radially_symmetric", False) or p_order:
+    if not isinstance(brdf, RadialLobe) or p_order:
         try:
             shrm_cli = importlib.import_module("relight.cli_shrm")
         except ImportError as exc:
@@ -93,7 +94,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
             raise InputError("view-dependent references need SHRM support") from exc
         result: int = shrm_cli.reference_view(args, brdf, env)
         return result
-    if not getattr(brdf, "radially_symmetric", False):
+    if not isinstance(brdf, RadialLobe):
         raise InputError(f"BRDF {args.brdf!r} is view dependent: give --view X,Y,Z")
     out = reference_radial(env.pixels, brdf, args.size, epsilon=args.truncation)
     write_exr(args.out, out.astype(np.float32))

@@ -62,7 +62,8 @@ def dirs_to_angles(d: NDArray[np.floating]) -> tuple[FloatArray, FloatArray]:
     n = np.linalg.norm(d, axis=-1)
     if np.any(n == 0):
         raise ValueError("zero-length direction")
-    theta = np.arccos(np.clip(d[..., 1] / n, -1.0, 1.0))
+    # atan2 keeps full precision next to the poles, where arccos(d.y) loses half the digits
+    theta = np.arctan2(np.hypot(d[..., 0], d[..., 2]), d[..., 1])
     phi = np.arctan2(d[..., 2], d[..., 0])
     return theta, phi
 

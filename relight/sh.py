@@ -183,8 +183,9 @@ def legendre_rows(lmax: int, theta: NDArray[np.floating], mmax: int | None = Non
     with np.errstate(divide="ignore"):
         log_sin = np.log(np.abs(np.sin(theta)))[None, :]
     m = np.arange(mmax + 1)[:, None].astype(np.float64)
-    log_pmm = _log_pmm(mmax)[:, None] + m * log_sin  # (M, T), -inf at the poles for m > 0
-    log_pmm[0, :] = _log_pmm(0)[0]
+    # (M, T): -inf at the poles for m > 0 (Pbar_mm = 0 there); m = 0 has no sin factor at all
+    with np.errstate(invalid="ignore"):  # 0 * -inf for m = 0 at a pole; replaced by 0 just below
+        log_pmm = _log_pmm(mmax)[:, None] + np.where(m > 0, m * log_sin, 0.0)
     sign_mm = np.where(np.arange(mmax + 1) % 2 == 0, 1.0, -1.0)[:, None]
     nt = theta.size
     p1 = np.zeros((mmax + 1, nt))  # mantissa at l-1

@@ -45,6 +45,7 @@ of the computed coefficients), maximum over colour channels.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -61,8 +62,8 @@ FloatArray = NDArray[np.float64]
 #: Grid rules (module docstring): samples per order in theta_i (S_rho ~ 10 F) and theta_o / phi (T_rho ~ 10 P).
 SAMPLES_PER_ORDER = 10
 MIN_THETA_I, MIN_THETA_O, MIN_PHI = 64, 24, 16
-#: Rough cap on lobe evaluations per block (memory ~ 100 doubles per evaluation inside rho_hat).
-_CHUNK = 200_000
+#: Lobe evaluations per block (about 100 doubles each inside rho_hat: a few MB, cache friendly).
+_CHUNK = 50_000
 
 
 @dataclass(frozen=True)
@@ -85,12 +86,22 @@ class LpqGrid:
         return (self.theta_i.size, self.theta_o.size, self.phi.size)
 
 
+@functools.lru_cache(maxsize=64)
 def _gauss_cos(n: int) -> tuple[FloatArray, FloatArray]:
-    """Gauss–Legendre nodes in cos(theta) as angles (ascending theta) and weights (sum 2)."""
+    """Gauss–Legendre nodes in cos(theta) as angles (ascending theta) and weights (sum 2); cached (read-only).
+
+    ``scipy.special.roots_legendre`` (asymptotic formulas for large n: O(n), unlike numpy's O(n^3) eigenvalues).
+    """
     if n == 1:
-        return np.array([np.pi / 2]), np.array([2.0])
-    x, w = np.polynomial.legendre.leggauss(n)
-    return np.arccos(x[::-1]), np.asarray(w[::-1], dtype=np.float64)
+        theta, w = np.array([np.pi / 2]), np.array([2.0])
+    else:
+        from scipy.special import roots_legendre
+
+        x, wx = roots_legendre(n)
+        theta, w = np.arccos(x[::-1]), np.asarray(wx[::-1], dtype=np.float64)
+    theta.setflags(write=False)
+    w.setflags(write=False)
+    return theta, w
 
 
 def tabulation_grid(

@@ -1,0 +1,345 @@
+"""Request and response models shared by the server and the client (pydantic only: no FastAPI, no NumPy).
+
+``...Create`` models are request bodies, ``...Public`` models are responses (full-stack-fastapi-template style).
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime
+from enum import StrEnum
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from client.brdfs import BrdfSpec
+
+Digest = Annotated[str, Field(pattern=r"^[0-9a-f]{64}$", description="SHA-256, 64 lowercase hex digits")]
+
+
+class Strict(BaseModel):
+    """Request models: unknown keys and NaN/Inf are rejected (422 naming the field)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class Public(BaseModel):
+    model_config = ConfigDict(extra="ignore")
+
+
+class JobState(StrEnum):
+    queued = "queued"
+    running = "running"
+    succeeded = "succeeded"
+    failed = "failed"
+    cancelled = "cancelled"
+
+    @property
+    def terminal(self) -> bool:
+        return self in (JobState.succeeded, JobState.failed, JobState.cancelled)
+
+
+ACTIVE_STATES = (JobState.queued, JobState.running)
+
+
+class Problem(Public):
+    """RFC 9457 problem details (``application/problem+json``)."""
+
+    type: str = "about:blank"
+    title: str
+    status: int
+    detail: str | None = None
+    instance: str | None = None
+    errors: list[dict[str, Any]] | None = Field(default=None, description="per-field validation errors")
+
+
+# -------------------------------------------------------------------------------------------------- envmaps
+class EnvmapPublic(Public):
+    id: Digest = Field(description="SHA-256 of the uploaded bytes")
+    name: str | None = None
+    format: str = Field(description="exr, hdr, png or jpeg")
+    layout: str = Field(description="latlong, or the cube-map layout that was resampled")
+    width: int
+    height: int
+    bytes: int
+    min: list[float] = Field(description="per-channel minimum (after clamping negatives)")
+    max: list[float]
+    mean: list[float]
+    negatives_clamped: int = Field(description="channel values below 0 that were set to 0")
+    min_negative: float
+    non_finite: int = Field(0, description="NaN/Inf values (always 0: such maps are rejected)")
+    spectrum_lmax: int
+    sh_power_spectrum: list[float] = Field(description="luminance energy per band l = 0..spectrum_lmax")
+    total_energy: float = Field(description="integral of luminance^2 over the sphere")
+    created_at: datetime
+    links: dict[str, str] = {}
+
+
+class EnvmapList(Public):
+    items: list[EnvmapPublic]
+
+
+# -------------------------------------------------------------------------------------------------- brdfs
+class BrdfPublic(Public):
+    id: Digest = Field(description="SHA-256 of the canonical spec (or of the measured file)")
+    kind: str
+    spec: dict[str, Any] = Field(description="canonical parameters, as accepted by POST /brdfs")
+    radially_symmetric: bool
+    center: str | None = Field(None, description="R (reflection vector), N (normal) or T (tangent)")
+    measured: bool = False
+    created_at: datetime
+    links: dict[str, str] = {}
+
+
+BrdfRef = Annotated[
+    Digest | BrdfSpec | str,
+    Field(description="a BRDF id from POST /brdfs, a spec object, or a spec string such as 'phong:s=32'"),
+]
+
+
+# -------------------------------------------------------------------------------------------------- plan / jobs
+class JobCreate(Strict):
+    """What to compute: an environment map, a BRDF, and either a tolerance or explicit orders."""
+
+    envmap: Digest
+    brdf: BrdfRef
+    epsilon: float | None = Field(None, gt=0.0, lt=1.0, description="energy fraction not captured (seed 000 §5.1)")
+    order: int | None = Field(None, ge=0, description="explicit order F")
+    p_order: int | None = Field(None, ge=0, description="explicit view order P (SHRMs)")
+    size: int | None = Field(None, ge=2, description="output rows S (the map is S x 2S); default S ~ 10 F")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> JobCreate:
+        if self.epsilon is not None and self.order is not None:
+            raise ValueError(f"give either epsilon ({self.epsilon}) or order ({self.order}), not both")
+        return self
+
+
+class PlanCreate(JobCreate):
+    pass
+
+
+class ShrmCreate(JobCreate):
+    pass
+
+
+class Orders(Public):
+    F_L: int | None = None
+    F_rho: int | None = None
+    F_B: int
+    P_B: int = 0
+
+
+class PredictedError(Public):
+    epsilon_lighting: float | None = None
+    epsilon_brdf: float | None = None
+    epsilon_min_of_errors: float | None = None
+    rms_min_of_errors: float | None = Field(None, description="predicted relative RMS error (sqrt of epsilon)")
+    epsilon_appendix_b: float | None = None
+    rms_appendix_b: float | None = None
+
+
+class OutputShape(Public):
+    height: int
+    width: int
+    layers: int
+    exr_bytes_estimate: int
+    bin_bytes: int
+
+
+class PlanPublic(Public):
+    job_id: Digest = Field(description="the id a job with these inputs gets (identical requests share it)")
+    cached: bool = Field(description="a finished result exists already")
+    representation: str = Field(description="reflection_map (radially symmetric lobe) or shrm")
+    reason: str
+    orders: Orders
+    predicted_error: PredictedError
+    predicted_seconds: float
+    output: OutputShape
+    cost_model: dict[str, Any] | None = Field(None, description="the cost model behind predicted_seconds: calibrated "
+                                              "on this machine (relight.costmodel) or the built-in defaults")
+
+
+class JobParams(Public):
+    epsilon: float | None = None
+    order: int | None = None
+    p_order: int | None = None
+    size: int | None = None
+
+
+class Prediction(Public):
+    seconds: float | None = None
+    rms_error: float | None = None
+    orders: Orders | None = None
+    representation: str | None = None
+
+
+class Measurement(Public):
+    seconds: float | None = Field(None, description="wall time from the first submission to the result")
+    task_seconds: float | None = Field(None, description="time inside the worker task")
+    compute_seconds: float | None = Field(None, description="time in the numerical core")
+    stage_seconds: dict[str, float] | None = Field(None, description="the core's seconds per stage")
+    rms_error: float | None = Field(None, description="the core's error estimate from the full spectra")
+    rms_bound: float | None = Field(None, description="App. B conservative bound on the relative RMS error")
+    orders: Orders | None = None
+    reused: bool = False
+
+
+class JobPublic(Public):
+    id: Digest
+    state: JobState
+    stage: str | None = None
+    progress: float = 0.0
+    envmap: Digest
+    brdf: Digest
+    brdf_spec: dict[str, Any]
+    params: JobParams
+    predicted: Prediction | None = None
+    measured: Measurement | None = None
+    failure_reason: str | None = None
+    runs: int = Field(0, description="times a worker started this job (> 1 after a worker died or a restart)")
+    submissions: int = Field(0, description="times the server submitted it to the cluster")
+    worker: str | None = None
+    cached: bool = Field(False, description="in a POST /shrms answer: the result existed already")
+    created_at: datetime
+    started_at: datetime | None = None
+    finished_at: datetime | None = None
+    links: dict[str, str] = {}
+
+
+class JobList(Public):
+    items: list[JobPublic]
+
+
+# -------------------------------------------------------------------------------------------------- results
+class LayerInfo(Public):
+    index: int
+    name: str = Field(description="EXR layer name ('' for plain R, G, B channels)")
+    component: int = Field(0, description="lobe of a sum-of-lobes material")
+    p: int
+    q: int
+
+
+class ShrmManifest(BaseModel):
+    """The manifest of a finished result (``GET /shrms/{id}``); every file is content-addressed."""
+
+    model_config = ConfigDict(extra="allow")
+
+    format: str
+    format_version: int
+    id: Digest
+    representation: str
+    height: int
+    width: int
+    layers: list[LayerInfo]
+    files: dict[str, dict[str, Any]]
+    envmap: Digest
+    brdf: dict[str, Any]
+    params: dict[str, Any]
+    algorithm_version: str
+    orders: dict[str, Any] | None = None
+    predicted: dict[str, Any] | None = None
+
+
+# -------------------------------------------------------------------------------------------------- tradeoffs
+Fraction = Annotated[float, Field(gt=0.0, lt=1.0)]
+Vector3 = Annotated[list[float], Field(min_length=3, max_length=3, description="x, y, z (normalised here)")]
+
+
+class TradeoffCreate(Strict):
+    """An accuracy–time sweep (``relight.tradeoff``): the frequency method at several tolerances and the angular
+    method at several truncations, on one map and BRDF, measured against the untruncated angular reference."""
+
+    envmap: Digest
+    brdf: BrdfRef
+    rows: int | None = Field(None, ge=8, le=256, description="area-average the map to this many rows (default 64)")
+    size: int | None = Field(None, ge=4, le=128, description="output rows S of every map (default rows / 2)")
+    epsilons: list[Fraction] | None = Field(None, min_length=1, max_length=10, description="frequency method")
+    truncations: list[Fraction] | None = Field(None, max_length=10, description="angular method (App. D)")
+    view: Vector3 | None = Field(None, description="view direction for view-dependent BRDFs")
+
+
+class TradeoffPublic(Public):
+    id: Digest
+    state: JobState
+    failure_reason: str | None = None
+    envmap: Digest
+    brdf: Digest
+    brdf_spec: dict[str, Any]
+    params: dict[str, Any]
+    points: list[dict[str, Any]] | None = Field(None, description="method, orders, predicted_error, measured_error, "
+                                                "predicted_seconds, measured_seconds, pareto, ... per point")
+    meta: dict[str, Any] | None = None
+    created_at: datetime
+    finished_at: datetime | None = None
+    links: dict[str, str] = {}
+
+
+# -------------------------------------------------------------------------------------------------- scenes
+SceneName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")]
+
+
+class SceneObjectCreate(Strict):
+    name: SceneName | None = None
+    shape: Literal["sphere", "bunny", "teapot"] = "sphere"
+    size: float = Field(gt=0.0, le=1e6, description="bounding radius")
+    distance: float = Field(gt=0.0, le=1e9, description="from the viewer to the object's centre (> size)")
+    material: BrdfRef
+    view: Vector3 | None = Field(None, description="direction from the object toward the viewer (default +Z)")
+
+
+class SceneCreate(Strict):
+    """A scene for the planner (``relight.planner``): a map, objects, and a tolerance or a time budget."""
+
+    name: SceneName = "scene"
+    environment: Digest
+    objects: list[SceneObjectCreate] = Field(min_length=1, max_length=16)
+    epsilon: float | None = Field(None, gt=0.0, lt=1.0, description="tolerance (seed 000 §5.1)")
+    time_budget_s: float | None = Field(None, gt=0.0, le=3600.0, description="or a time budget in seconds")
+    size: int | None = Field(None, ge=8, le=512, description="output rows of every map (default S ~ 10 F)")
+    preview_size: int = Field(0, ge=0, le=256, description="also render N x N sphere previews")
+
+    @model_validator(mode="after")
+    def _one_of(self) -> SceneCreate:
+        if (self.epsilon is None) == (self.time_budget_s is None):
+            raise ValueError("give exactly one of epsilon or time_budget_s")
+        return self
+
+
+class ScenePublic(Public):
+    id: Digest
+    state: JobState
+    failure_reason: str | None = None
+    scene: dict[str, Any]
+    plan: dict[str, Any] | None = Field(None, description="per object: what is simulated, what is skipped and why")
+    result: dict[str, Any] | None = None
+    files: dict[str, dict[str, Any]] | None = Field(None, description="name -> sha256, bytes, media_type")
+    created_at: datetime
+    finished_at: datetime | None = None
+    links: dict[str, str] = {}
+
+
+class Health(Public):
+    status: str
+    version: str
+    algorithm_version: str
+    scheduler: str
+    workers: int
+    database: str
+
+
+def parse_view(text: str) -> tuple[float, float, float]:
+    """``"x,y,z"`` to a unit vector; raises ``ValueError`` quoting the text when it is not one."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise ValueError(f"view must be three comma-separated numbers x,y,z, got {text!r}")
+    try:
+        v = tuple(float(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"view must be three comma-separated numbers x,y,z, got {text!r}") from None
+    if not all(math.isfinite(c) for c in v):
+        raise ValueError(f"view components must be finite, got {text!r}")
+    n = math.sqrt(sum(c * c for c in v))
+    if n < 1e-12:
+        raise ValueError(f"view must be a non-zero vector, got {text!r}")
+    return (v[0] / n, v[1] / n, v[2] / n)

@@ -1,0 +1,497 @@
+"""Accuracy against time: the frequency method at several tolerances and the angular method at several truncations
+(seed 000 §5.1, §6.2 Table 3, §7.4 Tables 4–5, App. D).
+
+:func:`sweep` runs, for one (environment, BRDF) pair on one output grid (``S x 2S``):
+
+* the **frequency method** for every tolerance ``epsilon``: a reflection map (``relight.prefilter.prefilter_radial``)
+  for a single radially symmetric lobe, otherwise an SHRM (``relight.shrm.create_shrm``) and its eq. 12 map for one
+  distant view (``relight.shrm.reflect``), since the angular method produces one view's map too (Table 5);
+* the **angular method** (``relight.reference.reference_radial`` / ``relight.reference_view.reference_view``) for
+  every lobe truncation (App. D: the cone holding ``1 - truncation`` of the lobe);
+* the **reference**: the angular method without truncation (every pixel of the sphere), the ground truth of every
+  measured error.
+
+Each point records the predicted error (the frequency method's minimum-of-errors estimate ``sqrt(epsilon_B)``,
+§5.1, with App. B's bound alongside; the angular method's dropped lobe fraction, which is its exact relative error
+for a uniform environment), the measured error (``relight.metrics.relative_rms`` against the reference), the
+predicted seconds (``relight.costmodel``, for the orders the run chose) and the measured seconds (wall clock; the
+BRDF coefficient cache is cleared first, so every point pays for its own order search; runs under a quarter second
+are repeated and the fastest kept). ``pareto`` marks the points
+no other point of the same method beats in both measured error and measured time; ``pareto_overall`` the same over
+both methods.
+
+Measured error against an independent renderer (Mitsuba 3) is not part of the sweep: its Monte Carlo noise (2.5–6 %
+per pixel at 1024 spp, FACTS.md) is above most of the errors measured here, and a render costs more than the whole
+sweep; the angular reference is exact for the pixelised environment and is itself checked against Mitsuba by the
+oracle tests.
+
+:func:`window_tradeoff` reports what optional windowing (``prefilter_radial(window=...)``) costs in accuracy and
+gains in ringing (the negative lobe of the band-limited kernel, Gibbs overshoot).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from relight import __version__, costmodel
+from relight.brdf.base import Lobe, RadialLobe
+from relight.conventions import check_latlong_shape, luminance
+from relight.errors import InputError
+from relight.metrics import relative_rms
+
+FloatArray = NDArray[np.float64]
+Progress = Callable[[str, float], None]
+
+#: Tolerances of the frequency method (the paper's epsilon, §5.1) swept by default: to 1e-4 for reflection maps;
+#: SHRMs stop at 1e-3 (below it a microfacet lobe needs P > 16 and minutes of BRDF tabulation, App. C).
+DEFAULT_EPSILONS: tuple[float, ...] = (0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4, 1e-4)
+DEFAULT_SHRM_EPSILONS: tuple[float, ...] = (0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3)
+#: Lobe truncations of the angular method (App. D) swept by default; §7.4 used 0.05.
+DEFAULT_TRUNCATIONS: tuple[float, ...] = (0.3, 0.1, 0.03, 0.01, 1e-3, 1e-4)
+#: Default view of view-dependent BRDFs (towards +Z, 30 degrees above the horizon).
+DEFAULT_VIEW: tuple[float, float, float] = (0.0, 0.5, 0.8660254037844386)
+#: Largest default output rows (the reference costs O(S_L^2 S_B^2)).
+MAX_DEFAULT_SIZE = 64
+
+
+@dataclass
+class Tradeoff:
+    """The points of a sweep and what they were measured on (:func:`sweep`)."""
+
+    points: list[dict[str, Any]]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"points": self.points, "meta": self.meta}
+
+
+def is_reflection_map(brdf: Any) -> bool:
+    """One radially symmetric lobe: a plain reflection map, view independent (§3.1)."""
+    return isinstance(brdf, RadialLobe)
+
+
+def pareto_flags(errors: Sequence[float], seconds: Sequence[float]) -> list[bool]:
+    """True for each point that no other point beats in both error and time (ties in both keep both)."""
+    e = np.asarray(errors, dtype=np.float64)
+    t = np.asarray(seconds, dtype=np.float64)
+    out = []
+    for i in range(e.size):
+        dominated = (e <= e[i]) & (t <= t[i]) & ((e < e[i]) | (t < t[i]))
+        out.append(not bool(dominated.any()))
+    return out
+
+
+#: Runs faster than this are repeated (best of :data:`REPEAT`): the machines are noisy (FACTS.md).
+QUICK_SECONDS = 0.25
+REPEAT = 3
+
+
+def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
+    """Wall seconds and result of ``fn``; quick runs are repeated and the fastest kept."""
+    best, out = math.inf, None
+    for k in range(REPEAT):
+        t0 = time.perf_counter()
+        res = fn()
+        dt = time.perf_counter() - t0
+        if dt < best:
+            best, out = dt, res
+        if k == 0 and dt >= QUICK_SECONDS:
+            break
+    return best, out
+
+
+def _finite_or_none(x: Any) -> float | None:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _check_pixels(pixels: NDArray[np.floating]) -> FloatArray:
+    px = np.asarray(pixels, dtype=np.float64)
+    if px.ndim != 3 or px.shape[2] != 3:
+        raise InputError(f"the environment map must be (H, W, 3), got shape {px.shape}")
+    try:
+        check_latlong_shape(px.shape)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    if not np.all(np.isfinite(px)):
+        raise InputError("the environment map has non-finite texels (NaN or Inf)")
+    return px
+
+
+def default_size(height: int) -> int:
+    """Output rows of a sweep: half the input's rows, at most :data:`MAX_DEFAULT_SIZE`, at least 8."""
+    return int(max(8, min(height // 2, MAX_DEFAULT_SIZE)))
+
+
+def _frequency_radial(
+    px: FloatArray, lobe: RadialLobe, eps: float, size: int, ref: FloatArray, cal: costmodel.Calibration
+) -> dict[str, Any]:
+    from relight.prefilter import prefilter_radial
+
+    h, w = px.shape[:2]
+    seconds, res = _timed(lambda: prefilter_radial(px, lobe, epsilon=eps, size=size))
+    o = res.report["orders"]
+    f_proj = min(int(o["F_rho"]), h - 1)
+    pred = cal.predict(costmodel.prefilter_report_features(lobe, res.report, height=h, width=w))
+    return {
+        "method": "frequency",
+        "representation": "reflection_map",
+        "setting": {"epsilon": eps},
+        "orders": {"F_B": int(o["F_B"]), "P_B": 0, "F_rho": int(o["F_rho"]), "F_L": o["F_L"], "F_proj": f_proj},
+        "predicted_error": _finite_or_none(o["rms_min_of_errors"]),
+        "predicted_error_bound": _finite_or_none(o["rms_appendix_b"]),
+        "measured_error": relative_rms(res.map, ref),
+        "predicted_seconds": pred.seconds,
+        "measured_seconds": seconds,
+        "predicted_stages": pred.stages,
+        "measured_stages": costmodel.report_stages(res.report["timings"]),
+    }
+
+
+def _frequency_shrm(
+    px: FloatArray, brdf: Any, eps: float, size: int, view: FloatArray, ref: FloatArray, cal: costmodel.Calibration
+) -> dict[str, Any]:
+    from relight.brdf import lpq
+    from relight.shrm import create_shrm, reflect
+
+    h, w = px.shape[:2]
+    def create() -> Any:
+        lpq.clear_cache()  # every point pays for its own order search (App. C step 1)
+        t0 = time.perf_counter()
+        out = create_shrm(px, brdf, epsilon=eps, size=size)
+        t1 = time.perf_counter()
+        image = reflect(out, view)  # a fresh SHRM: the view's cost includes eq. 8
+        return t1 - t0, time.perf_counter() - t1, out, image
+
+    _, (t_create, t_view, shrm, image) = _timed(create)
+    comps = shrm.report["components"]
+    plans = costmodel.shrm_lobe_plans(brdf, shrm.report)
+    f_proj = min(max(p.f_rho for p in plans), h - 1)
+    pred = cal.predict(costmodel.shrm_report_features(brdf, shrm.report, height=h, width=w, views=1))
+    measured_stages = costmodel.report_stages(shrm.report["timings"])
+    measured_stages["view"] = t_view
+    worst = shrm.report["predicted"]
+    return {
+        "method": "frequency",
+        "representation": "shrm",
+        "setting": {"epsilon": eps},
+        "orders": {
+            "F_B": max(p.f_b for p in plans), "P_B": max(p.p_b for p in plans), "F_proj": f_proj,
+            "components": [{"kind": c["lobe"].get("kind"), "center": c["center"], "structure": c["structure"],
+                            "F_rho": p.f_rho, "F_B": p.f_b, "P_B": p.p_b, "maps": c["n_maps"]}
+                           for c, p in zip(comps, plans, strict=True)],
+        },
+        "predicted_error": _finite_or_none(worst.get("rms_min_of_errors")),
+        "predicted_error_bound": _finite_or_none(worst.get("rms_appendix_b")),
+        "measured_error": relative_rms(image, ref),
+        "predicted_seconds": pred.seconds,
+        "measured_seconds": t_create + t_view,
+        "predicted_stages": pred.stages,
+        "measured_stages": measured_stages,
+    }
+
+
+def _angular(
+    px: FloatArray, brdf: Any, truncation: float, size: int, view: FloatArray | None, ref: FloatArray,
+    cal: costmodel.Calibration,
+) -> dict[str, Any]:
+    h = px.shape[0]
+    if view is None:
+        from relight.reference import reference_radial, truncation_angle
+
+        theta_star = truncation_angle(brdf, truncation)
+        pairs = costmodel.angular_pairs(h, size, theta_star)
+        pred = cal.predict(costmodel.angular_features(h, size, theta_star))
+        seconds, out = _timed(lambda: reference_radial(px, brdf, size, epsilon=truncation))
+        w_d = 0.5 * (1.0 - math.cos(theta_star))
+        orders: dict[str, Any] = {"truncation": truncation, "theta_star_deg": math.degrees(theta_star),
+                                  "W": w_d, "W_visited": pairs / float(h * 2 * h * size * 2 * size)}
+    else:
+        from relight.reference_view import reference_view
+
+        feats = costmodel.angular_view_features(brdf, view, h, size, truncation)  # also builds the cone table
+        pairs, _, w_d = costmodel.angular_view_counts(brdf, view, h, size, truncation)
+        pred = cal.predict(feats)
+        seconds, out = _timed(lambda: reference_view(px, brdf, view, size, truncation=truncation))
+        orders = {"truncation": truncation, "W": w_d, "W_visited": pairs / float(h * 2 * h * size * 2 * size)}
+    return {
+        "method": "angular",
+        "representation": "reflection_map",
+        "setting": {"truncation": truncation},
+        "orders": orders,
+        "predicted_error": truncation,
+        "predicted_error_bound": None,
+        "measured_error": relative_rms(out, ref),
+        "predicted_seconds": pred.seconds,
+        "measured_seconds": seconds,
+        "predicted_stages": pred.stages,
+        "measured_stages": {"angular_view" if view is not None else "angular": seconds},
+    }
+
+
+def sweep(
+    pixels: NDArray[np.floating],
+    brdf: Any,
+    *,
+    epsilons: Sequence[float] | None = None,
+    truncations: Sequence[float] = DEFAULT_TRUNCATIONS,
+    size: int | None = None,
+    view: Sequence[float] = DEFAULT_VIEW,
+    calibration: costmodel.Calibration | None = None,
+    progress: Progress | None = None,
+) -> Tradeoff:
+    """Run both methods over their accuracy settings on one ``S x 2S`` grid (module docstring).
+
+    ``epsilons`` default to :data:`DEFAULT_EPSILONS` (reflection maps) or :data:`DEFAULT_SHRM_EPSILONS` (SHRMs).
+    ``view`` is used only for view-dependent materials. ``calibration`` defaults to
+    :func:`relight.costmodel.load_calibration` (calibrating on first use).
+    """
+    px = _check_pixels(pixels)
+    h = px.shape[0]
+    if epsilons is None:
+        epsilons = DEFAULT_EPSILONS if is_reflection_map(brdf) else DEFAULT_SHRM_EPSILONS
+    if not epsilons and not truncations:
+        raise InputError("a sweep needs at least one epsilon or one truncation")
+    for e in epsilons:
+        if not 0.0 < float(e) < 1.0:
+            raise InputError(f"epsilon must lie in (0, 1), got {e}")
+    for t in truncations:
+        if not 0.0 < float(t) < 1.0:
+            raise InputError(f"truncation must lie in (0, 1), got {t}")
+    s = default_size(h) if size is None else int(size)
+    if not 2 <= s <= 4 * h:
+        raise InputError(f"size must lie in 2..{4 * h} for a {h}-row map, got {s}")
+    if not isinstance(brdf, Lobe) and not hasattr(brdf, "lobes"):
+        raise InputError(f"not a BRDF: {type(brdf).__name__}")
+    radial = is_reflection_map(brdf)
+    v: FloatArray | None = None
+    if not radial:
+        from relight.shrm import unit_view
+
+        v = unit_view(view)
+    cal = calibration if calibration is not None else costmodel.load_calibration()
+    report = progress or (lambda stage, fraction: None)
+    n_total = len(epsilons) + len(truncations) + 1
+
+    report("reference", 0.0)
+    if v is None:
+        from relight.reference import reference_radial
+
+        t_ref, ref = _timed(lambda: reference_radial(px, brdf, s, epsilon=0.0))
+    else:
+        from relight.reference_view import reference_view
+
+        vv = v
+        t_ref, ref = _timed(lambda: reference_view(px, brdf, vv, s, truncation=0.0))
+    if not np.any(luminance(ref)):
+        raise InputError("the reference is zero everywhere (a black environment): relative errors are undefined")
+
+    points: list[dict[str, Any]] = []
+    done = 1
+    for eps in sorted({float(e) for e in epsilons}, reverse=True):
+        report("frequency", done / n_total)
+        if v is None:
+            assert isinstance(brdf, RadialLobe)
+            points.append(_frequency_radial(px, brdf, eps, s, ref, cal))
+        else:
+            points.append(_frequency_shrm(px, brdf, eps, s, v, ref, cal))
+        done += 1
+    for tr in sorted({float(t) for t in truncations}, reverse=True):
+        report("angular", done / n_total)
+        points.append(_angular(px, brdf, tr, s, v, ref, cal))
+        done += 1
+
+    for method in ("frequency", "angular"):
+        idx = [i for i, p in enumerate(points) if p["method"] == method]
+        flags = pareto_flags([points[i]["measured_error"] for i in idx], [points[i]["measured_seconds"] for i in idx])
+        for i, f in zip(idx, flags, strict=True):
+            points[i]["pareto"] = f
+    overall = pareto_flags([p["measured_error"] for p in points], [p["measured_seconds"] for p in points])
+    for p, f in zip(points, overall, strict=True):
+        p["pareto_overall"] = f
+
+    ratios = [p["predicted_seconds"] / p["measured_seconds"] for p in points if p["measured_seconds"] > 0]
+    spec = brdf.spec() if hasattr(brdf, "spec") else None
+    meta = {
+        "relight_version": __version__,
+        "brdf": spec,
+        "representation": "reflection_map" if radial else "shrm",
+        "input": {"height": h, "width": 2 * h},
+        "output": {"height": s, "width": 2 * s},
+        "view": None if v is None else [float(x) for x in v],
+        "metric": "relative RMS error over the sphere, solid-angle weighted, Rec. 709 luminance (relight.metrics)",
+        "reference": {"method": "angular", "truncation": 0.0, "seconds": t_ref},
+        "calibration": {"key": cal.key, "calibrated": cal.calibrated, "created": cal.created,
+                        "constants": dict(cal.constants)},
+        "time_ratio_range": [min(ratios), max(ratios)] if ratios else None,
+        "mitsuba": "omitted: its Monte Carlo noise (2.5-6 % per pixel at 1024 spp) exceeds most errors measured here",
+    }
+    report("done", 1.0)
+    return Tradeoff(points=points, meta=meta)
+
+
+# ------------------------------------------------------------------------------------------------- windowing
+def window_tradeoff(
+    pixels: NDArray[np.floating],
+    lobe: RadialLobe,
+    *,
+    order: int,
+    size: int,
+    reference: NDArray[np.floating] | None = None,
+    windows: Sequence[str] = ("none", "hann", "lanczos"),
+) -> list[dict[str, Any]]:
+    """Accuracy cost and ringing gain of windowing the order-F expansion (``prefilter_radial(window=...)``).
+
+    For each window: ``relative_rms`` against ``reference`` (default: the untruncated angular reference),
+    ``kernel_min`` (the most negative value of the band-limited lobe, the prefilter report's ringing figure),
+    ``kernel_min_relative`` (that over the lobe's peak ``u_F(1)``), the report's lower bound on every output texel,
+    the most negative output value (luminance) relative to the output's largest, and the fraction of negative
+    output texels (luminance). Negative lobes of ``u_F`` are what turn a bright sun into dark rings (Gibbs).
+    """
+    from relight.brdf.coefficients import kernel_on_grid, radial_transfer, window_factors
+    from relight.prefilter import prefilter_radial
+    from relight.reference import reference_radial
+
+    px = _check_pixels(pixels)
+    ref = np.asarray(reference, dtype=np.float64) if reference is not None else reference_radial(
+        px, lobe, size, epsilon=0.0)
+    transfer = radial_transfer(lobe, order).transfer
+    out = []
+    for w in windows:
+        res = prefilter_radial(px, lobe, order=order, size=size, window=w)
+        factors = transfer * window_factors(order, w)[:, None]
+        peak = float(np.max(kernel_on_grid(factors, np.array([1.0]))))
+        y = luminance(res.map)
+        ring = res.report["ringing"]
+        out.append({
+            "window": w,
+            "order": order,
+            "relative_rms": relative_rms(res.map, ref),
+            "kernel_min": float(ring["kernel_min"]),
+            "kernel_min_relative": float(ring["kernel_min"]) / peak if peak > 0 else 0.0,
+            "lower_bound_rgb": list(ring["lower_bound_rgb"]),
+            "min_output_relative": float(y.min() / y.max()) if y.max() > 0 else 0.0,
+            "negative_fraction": float(np.mean(y < 0.0)),
+        })
+    return out
+
+
+# ------------------------------------------------------------------------------------------------- output
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def write_tradeoff(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> dict[str, Path]:
+    """``tradeoff.json`` (the list of points), ``tradeoff_meta.json`` and the three plots of :func:`plot`."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"tradeoff.json": out / "tradeoff.json", "tradeoff_meta.json": out / "tradeoff_meta.json"}
+    paths["tradeoff.json"].write_text(json.dumps(_jsonable(result.points), indent=1, allow_nan=False))
+    paths["tradeoff_meta.json"].write_text(json.dumps(_jsonable(result.meta), indent=1, allow_nan=False))
+    paths.update(plot(result, out, title=title))
+    return paths
+
+
+_STYLE = {"frequency": ("tab:blue", "o"), "angular": ("tab:orange", "s")}
+
+
+def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> dict[str, Path]:
+    """PNG plots (matplotlib, Agg): error vs time with both Pareto fronts, predicted vs measured error, predicted
+    vs measured time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    name = title or str((result.meta.get("brdf") or {}).get("kind", "tradeoff"))
+    paths: dict[str, Path] = {}
+    pts = result.points
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    for method, (colour, marker) in _STYLE.items():
+        mp = [p for p in pts if p["method"] == method]
+        if not mp:
+            continue
+        ax.scatter([p["measured_seconds"] for p in mp], [max(p["measured_error"], 1e-12) for p in mp], c=colour,
+                   marker=marker, label=f"{method} method", zorder=3)
+        front = sorted((p for p in mp if p.get("pareto")), key=lambda p: p["measured_seconds"])
+        if front:
+            ax.step([p["measured_seconds"] for p in front], [max(p["measured_error"], 1e-12) for p in front],
+                    where="post", color=colour, alpha=0.6, label=f"{method} Pareto front")
+        for p in mp:
+            lab = (f"F={p['orders'].get('F_B')}" + (f",P={p['orders'].get('P_B')}" if p["orders"].get("P_B") else "")
+                   if method == "frequency" else f"t={p['setting']['truncation']:g}")
+            ax.annotate(lab, (p["measured_seconds"], max(p["measured_error"], 1e-12)), fontsize=6,
+                        xytext=(3, 3), textcoords="offset points")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("measured seconds")
+    ax.set_ylabel("measured relative RMS error")
+    ax.set_title(f"{name}: accuracy against time")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    paths["error_vs_time.png"] = out / "error_vs_time.png"
+    fig.savefig(paths["error_vs_time.png"], dpi=110)
+    plt.close(fig)
+
+    for key, pred_key, meas_key, label in (
+        ("predicted_vs_measured_error.png", "predicted_error", "measured_error", "relative RMS error"),
+        ("predicted_vs_measured_time.png", "predicted_seconds", "measured_seconds", "seconds"),
+    ):
+        fig, ax = plt.subplots(figsize=(5.2, 4.6))
+        vals: list[float] = []
+        for method, (colour, marker) in _STYLE.items():
+            mp = [p for p in pts if p["method"] == method and p.get(pred_key) and p.get(meas_key)]
+            if not mp:
+                continue
+            x = [max(float(p[pred_key]), 1e-12) for p in mp]
+            y = [max(float(p[meas_key]), 1e-12) for p in mp]
+            vals += x + y
+            ax.scatter(x, y, c=colour, marker=marker, label=f"{method} method", zorder=3)
+            if pred_key == "predicted_error" and method == "frequency":
+                b = [(max(float(p["predicted_error_bound"]), 1e-12), max(float(p[meas_key]), 1e-12)) for p in mp
+                     if p.get("predicted_error_bound")]
+                if b:
+                    ax.scatter([u for u, _ in b], [w for _, w in b], facecolors="none", edgecolors=colour,
+                               marker="^", label="frequency, App. B bound", zorder=3)
+                    vals += [u for u, _ in b]
+        if vals:
+            lo, hi = min(vals) / 2, max(vals) * 2
+            ax.plot([lo, hi], [lo, hi], "k-", lw=0.8, label="predicted = measured")
+            if pred_key == "predicted_seconds":
+                ax.plot([lo, hi], [lo / 2, hi / 2], "k:", lw=0.6, label="factor 2")
+                ax.plot([lo, hi], [lo * 2, hi * 2], "k:", lw=0.6)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(f"predicted {label}")
+        ax.set_ylabel(f"measured {label}")
+        ax.set_title(f"{name}: predicted against measured {label.split()[-1]}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        paths[key] = out / key
+        fig.savefig(paths[key], dpi=110)
+        plt.close(fig)
+    return paths

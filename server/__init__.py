@@ -1,0 +1,1 @@
+"""The relight HTTP service (FastAPI): uploads, BRDFs, plans, jobs on Dask, content-addressed results."""

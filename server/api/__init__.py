@@ -1,0 +1,1 @@
+"""HTTP layer: routers (one per resource), dependencies and response helpers."""

@@ -1,0 +1,93 @@
+"""Dependencies as ``Annotated`` aliases: routes declare what they need.
+
+Every dependency is ``async``: FastAPI runs plain ``def`` dependencies in the thread pool, a thread hop per
+dependency per request, which on the cached-download path costs more than the work itself. Settings come from
+the app (``create_app(settings)``, default :func:`server.config.get_settings`); a test passes its own.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+from typing import Annotated
+
+from fastapi import Depends, Request
+
+from server.config import Settings
+from server.problems import Unauthorized
+from server.services.brdfs import BrdfService
+from server.services.envmaps import EnvmapService
+from server.services.jobs import JobService
+from server.services.plans import PlanService
+from server.state import Services
+
+
+async def get_app_settings(request: Request) -> Settings:
+    settings: Settings = request.app.state.settings
+    return settings
+
+
+SettingsDep = Annotated[Settings, Depends(get_app_settings)]
+
+
+def _services(request: Request) -> Services:
+    services: Services = request.app.state.services
+    return services
+
+
+async def get_services(request: Request) -> Services:
+    return _services(request)
+
+
+ServicesDep = Annotated[Services, Depends(get_services)]
+
+
+# Each takes the request directly (not ServicesDep): one dependency level less on every request.
+async def get_envmaps(request: Request) -> EnvmapService:
+    return _services(request).envmaps
+
+
+async def get_brdfs(request: Request) -> BrdfService:
+    return _services(request).brdfs
+
+
+async def get_plans(request: Request) -> PlanService:
+    return _services(request).plans
+
+
+async def get_jobs(request: Request) -> JobService:
+    return _services(request).jobs
+
+
+EnvmapsDep = Annotated[EnvmapService, Depends(get_envmaps)]
+BrdfsDep = Annotated[BrdfService, Depends(get_brdfs)]
+PlansDep = Annotated[PlanService, Depends(get_plans)]
+JobsDep = Annotated[JobService, Depends(get_jobs)]
+
+
+def presented_key(request: Request) -> str | None:
+    auth = request.headers.get("authorization")
+    if auth and auth[:7].lower() == "bearer ":
+        return auth[7:].strip()
+    return request.headers.get("x-api-key")
+
+
+async def require_api_key(request: Request) -> None:
+    """Off when no key hashes are configured; else the SHA-256 of the presented key must match one
+    (constant-time comparison against every configured hash)."""
+    settings: Settings = request.app.state.settings
+    if not settings.api_key_hashes:
+        return
+    key = presented_key(request)
+    if not key:
+        raise Unauthorized("this server needs an API key: send 'Authorization: Bearer <key>' or 'X-API-Key'",
+                           headers={"WWW-Authenticate": "Bearer"})
+    digest = hashlib.sha256(key.encode()).hexdigest()
+    ok = False
+    for h in settings.api_key_hashes:
+        ok |= hmac.compare_digest(digest, h)
+    if not ok:
+        raise Unauthorized("the API key is not valid", headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
+
+
+ApiKey = Depends(require_api_key)

@@ -1,0 +1,15 @@
+"""All routes; everything but health and metrics sits behind the (optional) API key."""
+
+from __future__ import annotations
+
+from fastapi import FastAPI
+
+from server.api.deps import ApiKey
+from server.api.routes import brdfs, envmaps, health, jobs, plan, scenes, shrms, tradeoffs
+
+
+def include_routes(app: FastAPI) -> None:
+    """One level of routers (nesting routers costs a matching pass per level on every request)."""
+    app.include_router(health.router)
+    for r in (envmaps.router, brdfs.router, plan.router, shrms.router, jobs.router, tradeoffs.router, scenes.router):
+        app.include_router(r, dependencies=[ApiKey])

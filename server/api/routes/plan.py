@@ -1,0 +1,17 @@
+"""``/plan``: orders, predicted error and time, and the representation, without computing anything."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from client.models import PlanCreate, PlanPublic
+from server.api.deps import PlansDep
+from server.problems import problem_responses
+
+router = APIRouter(tags=["plan"])
+
+
+@router.post("/plan", response_model=PlanPublic, responses=problem_responses(400, 401, 404, 422))
+async def plan(body: PlanCreate, plans: PlansDep) -> PlanPublic:
+    """Predict what ``POST /shrms`` with the same body would do (cheap: spectra only)."""
+    return await plans.plan(body)

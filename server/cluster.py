@@ -1,0 +1,104 @@
+"""The Dask side of the server: an embedded ``LocalCluster`` or a connection to an existing scheduler.
+
+Embedded (no ``RELIGHT_SCHEDULER``): worker *processes* bound to 127.0.0.1, no dashboards, each with a memory
+limit; the scheduler lives in the server process. Scale-out: ``RELIGHT_SCHEDULER=tcp://host:8786`` connects to
+a running scheduler whose workers were started with ``relight worker --scheduler ...``.
+
+The client is asynchronous and shares the server's event loop. Dask's classes are untyped; they are held as
+``Any`` here, the one module that talks to Dask directly.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Callable
+from typing import Any
+
+import dask
+from distributed import Client, LocalCluster
+
+from server.config import Settings
+
+log = logging.getLogger("relight.server")
+
+#: Worker deaths a task survives before Dask gives up on it (KilledWorker). One death is rescheduled (a lost
+#: worker must not fail a job); a second points at the task itself (e.g. an input that crashes the decoder).
+ALLOWED_FAILURES = 1
+START_TIMEOUT_S = 60.0
+
+
+class Cluster:
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.local: Any = None  # distributed.LocalCluster
+        self._client: Any = None  # distributed.Client (asynchronous)
+
+    @property
+    def client(self) -> Any:
+        if self._client is None:
+            raise RuntimeError("the Dask client is not started")
+        return self._client
+
+    @property
+    def address(self) -> str:
+        return self.settings.scheduler or (self.local.scheduler_address if self.local else "not started")
+
+    async def start(self) -> None:
+        s = self.settings
+        if s.scheduler:
+            client: Any = Client
+            self._client = await asyncio.wait_for(
+                client(s.scheduler, asynchronous=True, timeout=START_TIMEOUT_S), START_TIMEOUT_S
+            )
+        else:
+            local: Any = LocalCluster
+            with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+                self.local = await local(
+                    n_workers=s.n_workers,
+                    threads_per_worker=s.threads_per_worker,
+                    processes=True,
+                    host="127.0.0.1",
+                    dashboard_address=None,
+                    worker_dashboard_address=None,
+                    memory_limit=s.worker_memory_limit,
+                    preload=["worker.preload"],
+                    asynchronous=True,
+                )
+            client = Client
+            self._client = await client(self.local, asynchronous=True)
+        log.info("Dask scheduler %s", self.address)
+
+    def subscribe(self, topic: str, handler: Callable[[Any], None]) -> None:
+        self.client.subscribe_topic(topic, handler)
+
+    def submit(self, fn: Callable[..., Any], *args: Any, key: str, **kwargs: Any) -> Any:
+        """A ``distributed.Future`` (awaitable) for ``fn(*args, **kwargs)`` under ``key``."""
+        return self.client.submit(fn, *args, key=key, pure=False, retries=0, **kwargs)
+
+    async def cancel(self, future: Any) -> None:
+        await self.client.cancel([future], force=True)
+
+    async def n_workers(self) -> int:
+        info = await self.client.scheduler.identity(n_workers=-1)
+        return len(info.get("workers", {}))
+
+    async def restart_worker(self, address: str) -> None:
+        try:
+            await self.client.restart_workers([address], timeout=30, raise_for_error=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            log.warning("could not restart worker %s: %s", address, exc)
+
+    async def close(self) -> None:
+        if self._client is not None:
+            try:
+                await asyncio.wait_for(self._client.close(), 10)
+            except (TimeoutError, OSError) as exc:
+                log.warning("closing the Dask client: %s", exc)
+            self._client = None
+        if self.local is not None:
+            try:
+                await asyncio.wait_for(self.local.close(), 20)
+            except (TimeoutError, OSError) as exc:
+                log.warning("closing the embedded cluster: %s", exc)
+            self.local = None

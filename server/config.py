@@ -1,0 +1,81 @@
+"""Service settings from ``RELIGHT_*`` environment variables (pydantic-settings), read once per process.
+
+List settings (``RELIGHT_API_KEY_HASHES``, ``RELIGHT_CORS_ORIGINS``) are comma-separated.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated
+
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
+
+MiB = 1 << 20
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix="RELIGHT_", extra="ignore")
+
+    data_dir: Path = Field(Path("relight-data"), description="database and blobs live here by default")
+    database_url: str | None = Field(None, description="any SQLAlchemy URL; default SQLite <data_dir>/relight.db")
+    blob_dir: Path | None = Field(None, description="blob store root (shared with workers); default <data_dir>/blobs")
+
+    scheduler: str | None = Field(None, description="tcp://host:8786 of an existing Dask scheduler; unset: embedded")
+    n_workers: int = Field(2, ge=1, description="embedded cluster: worker processes")
+    threads_per_worker: int = Field(1, ge=1)
+    worker_memory_limit: str = Field("4GiB", description="embedded cluster: memory limit per worker process")
+
+    max_upload_bytes: int = Field(256 * MiB, ge=1)
+    max_pixels: int = Field(4096 * 2048, ge=1, description="largest environment map (width x height)")
+    max_order: int = Field(1024, ge=0, description="largest order F a job may use")
+    max_p_order: int = Field(16, ge=0, description="largest view order P a job may use")
+    max_size: int = Field(2048, ge=2, description="largest output rows S")
+    max_active_jobs: int = Field(64, ge=1, description="queued + running jobs; more answer 429")
+    decode_timeout_s: float = Field(120.0, gt=0, description="time limit for decoding one upload in a worker")
+    blob_cache_bytes: int = Field(256 * MiB, ge=0, description="verified result bytes kept in memory for GETs")
+    spectrum_lmax: int = Field(256, ge=0, description="bands of the lighting spectrum stored per map (for /plan)")
+
+    api_key_hashes: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description="SHA-256 hex digests of accepted API keys; empty: no authentication"
+    )
+    cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
+
+    preload_dir: Path | None = Field(None, description="environment maps ingested at start-up")
+    progress_interval_s: float = Field(0.25, ge=0, description="least seconds between stored progress updates")
+    log_level: str = "info"
+
+    #: TEST ONLY: seconds each job waits (reporting progress) before computing, so tests can act "mid-job".
+    test_job_delay_s: float = Field(0.0, ge=0, description="TEST ONLY: artificial delay per job")
+
+    @field_validator("api_key_hashes", "cors_origins", mode="before")
+    @classmethod
+    def _split(cls, v: object) -> object:
+        if isinstance(v, str):
+            return [s.strip() for s in v.split(",") if s.strip()]
+        return v
+
+    @field_validator("api_key_hashes")
+    @classmethod
+    def _hex(cls, v: list[str]) -> list[str]:
+        out = []
+        for h in v:
+            h = h.lower().removeprefix("sha256:")
+            if len(h) != 64 or any(c not in "0123456789abcdef" for c in h):
+                raise ValueError(f"API key hashes must be SHA-256 hex digests, got {h[:12]!r}...")
+            out.append(h)
+        return out
+
+    @property
+    def resolved_blob_dir(self) -> Path:
+        return (self.blob_dir or self.data_dir / "blobs").resolve()
+
+    @property
+    def resolved_database_url(self) -> str:
+        return self.database_url or f"sqlite:///{(self.data_dir / 'relight.db').resolve()}"
+
+
+@lru_cache
+def get_settings() -> Settings:
+    return Settings()  # fields come from the environment (pydantic-settings)

@@ -1,0 +1,38 @@
+"""Run the server with uvicorn on a socket bound here (so ``--port 0`` works and the URL is known)."""
+
+from __future__ import annotations
+
+import socket
+import sys
+
+import uvicorn
+from fastapi import FastAPI
+
+from server.config import Settings
+from server.main import create_app
+
+
+def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None:
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind((host, port))
+    bound_port = sock.getsockname()[1]
+    shown = f"[{host}]" if family == socket.AF_INET6 else host
+    url = f"http://{shown}:{bound_port}"
+
+    def ready(app: FastAPI) -> None:
+        services = app.state.services
+        print(f"relight: serving {url} (data {settings.data_dir.resolve()}, Dask {services.cluster.address})",
+              flush=True)
+
+    app = create_app(settings, on_ready=ready)
+    config = uvicorn.Config(app, log_level=settings.log_level.lower() if settings.log_level else "info",
+                            access_log=False, lifespan="on", timeout_graceful_shutdown=5)
+    server = uvicorn.Server(config)
+    try:
+        server.run(sockets=[sock])
+    finally:
+        sock.close()
+    if not server.started:
+        sys.exit(1)

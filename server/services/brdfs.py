@@ -1,0 +1,156 @@
+"""BRDFs: validated specs (every model of ``relight.brdf``) and measured MERL files, content-addressed.
+
+A BRDF's id is the SHA-256 of its canonical spec (``relight.brdf.spec.brdf_to_spec`` of the parsed lobe), so
+``{"kind": "phong", "s": 32}``, ``"phong:s=32"`` and the same spec with its defaults spelled out share one id.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import AsyncIterator
+from typing import Any
+
+from pydantic import BaseModel
+
+from client.models import BrdfPublic
+from relight.errors import InputError
+from server.config import Settings
+from server.db import Brdf, Database
+from server.problems import BadRequest, ContentTooLarge, NotFound, Unprocessable
+from server.services.base import content_id, in_thread, utc
+from worker.blobs import DIGEST_RE, BlobStore
+from worker.specs import check_client_string
+
+
+def canonical_spec(spec: dict[str, Any] | str) -> tuple[dict[str, Any], Any]:
+    """Parse with the core (its validation is the authority) and return the canonical spec and the lobe.
+
+    Strings that would make the core open a file are refused first (``worker.specs``)."""
+    from relight.brdf.spec import brdf_to_spec, parse_brdf
+
+    try:
+        if isinstance(spec, str):
+            check_client_string(spec)
+        lobe = parse_brdf(spec)
+        canon = brdf_to_spec(lobe)
+    except (InputError, ValueError, TypeError) as exc:
+        raise Unprocessable(f"brdf: {exc}") from None
+    if not isinstance(canon, dict):
+        raise Unprocessable(f"brdf: the core returned a non-object spec for {spec!r}")
+    return canon, lobe
+
+
+class BrdfService:
+    def __init__(self, settings: Settings, db: Database, store: BlobStore) -> None:
+        self.settings = settings
+        self.db = db
+        self.store = store
+        self._cache: dict[str, BrdfPublic] = {}
+
+    def _public(self, row: Brdf, lobe: Any | None = None) -> BrdfPublic:
+        if lobe is None and row.measured_sha256 is None:
+            _, lobe = canonical_spec(row.spec)
+        measured = row.measured_sha256 is not None
+        return BrdfPublic(
+            id=row.id, kind=row.kind, spec=row.spec, radially_symmetric=bool(getattr(lobe, "radially_symmetric",
+                                                                                        False)),
+            center="R" if measured else getattr(lobe, "center", None), measured=measured,
+            created_at=utc(row.created_at), links={"self": f"/brdfs/{row.id}"},
+        )
+
+    async def register(self, spec: dict[str, Any] | str, measured_sha256: str | None = None) -> tuple[BrdfPublic, bool]:
+        """Store a BRDF under the hash of its canonical spec. Measured files are kept as they are (the spec names
+        the file's digest); whether the core can prefilter them is checked when a job is planned."""
+        if measured_sha256 is not None and isinstance(spec, dict):
+            canon, lobe = spec, None
+        else:
+            canon, lobe = await in_thread(canonical_spec, spec)
+        brdf_id = content_id(canon)
+        cached = self._cache.get(brdf_id)
+        if cached is not None:
+            return cached, False
+        row = Brdf(id=brdf_id, kind=str(canon.get("kind", type(lobe).__name__)), spec=canon,
+                   measured_sha256=measured_sha256)
+
+        def upsert() -> tuple[Brdf, bool]:
+            with self.db.session() as s:
+                found = s.get(Brdf, brdf_id)
+                if found is not None:
+                    return found, False
+                s.add(row)
+            return row, True
+
+        stored, created = await in_thread(upsert)
+        pub = self._public(stored, lobe)
+        self._cache[brdf_id] = pub
+        return pub, created
+
+    async def create(self, spec: BaseModel) -> tuple[BrdfPublic, bool]:
+        return await self.register(spec.model_dump(mode="json", exclude_none=True))
+
+    async def get(self, brdf_id: str) -> BrdfPublic:
+        cached = self._cache.get(brdf_id)
+        if cached is not None:
+            return cached
+
+        def q() -> Brdf | None:
+            with self.db.session() as s:
+                return s.get(Brdf, brdf_id)
+
+        row = await in_thread(q)
+        if row is None:
+            raise NotFound(f"no BRDF with id {brdf_id!r}")
+        pub = await in_thread(self._public, row)
+        self._cache[brdf_id] = pub
+        return pub
+
+    async def resolve(self, ref: str | BaseModel) -> BrdfPublic:
+        """A BRDF id (must exist), a spec string such as ``phong:s=32``, or a spec object."""
+        if isinstance(ref, BaseModel):
+            return (await self.create(ref))[0]
+        if DIGEST_RE.match(ref):
+            return await self.get(ref)
+        return (await self.register(ref))[0]
+
+    async def upload_measured(self, chunks: AsyncIterator[bytes], content_length: str | None) -> tuple[BrdfPublic,
+                                                                                                       bool]:
+        """A MERL ``.binary`` file (``relight.brdf.measured``: dimensions (90, 90, 180), then float64 samples),
+        checked by size and header while streaming and then read by the core."""
+        from relight.brdf.measured import MERL_DIMS, MERL_FILE_BYTES, read_merl
+
+        cap = min(MERL_FILE_BYTES, self.settings.max_upload_bytes)
+        if content_length is not None:
+            try:
+                declared = int(content_length)
+            except ValueError:
+                raise BadRequest(f"Content-Length must be an integer, got {content_length!r}") from None
+            if declared > cap:
+                raise ContentTooLarge(f"the body is {declared} bytes; a MERL file is exactly {MERL_FILE_BYTES} bytes"
+                                      f" and this server accepts at most {self.settings.max_upload_bytes}")
+        writer = self.store.writer()
+        try:
+            head = b""
+            async for chunk in chunks:
+                if writer.size + len(chunk) > cap:
+                    raise ContentTooLarge(f"the body exceeds {cap} bytes (a MERL file is exactly {MERL_FILE_BYTES})")
+                if len(head) < 12:
+                    head += chunk[: 12 - len(head)]
+                writer.write(chunk)
+            if len(head) < 12:
+                raise Unprocessable(f"a MERL file starts with three int32 dimensions; the body has {writer.size} "
+                                    "bytes")
+            dims = struct.unpack("<3i", head)
+            if dims != tuple(MERL_DIMS):
+                raise Unprocessable(f"MERL dimensions must be {tuple(MERL_DIMS)}, the file says {dims}")
+            if writer.size != MERL_FILE_BYTES:
+                raise Unprocessable(f"a MERL file is exactly {MERL_FILE_BYTES} bytes, the body has {writer.size}")
+            digest = await in_thread(writer.finish)
+            try:
+                await in_thread(read_merl, writer.tmp_path)  # the core's own checks (finite values ...)
+            except InputError as exc:
+                raise Unprocessable(str(exc).replace(writer.tmp_path.name, "the upload")) from None
+            await in_thread(self.store._install, writer.tmp_path, digest)
+        except BaseException:
+            writer.abort()
+            raise
+        return await self.register({"kind": "merl", "sha256": digest}, measured_sha256=digest)

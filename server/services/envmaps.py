@@ -1,0 +1,246 @@
+"""Environment-map uploads: streamed, size-capped, sniffed, header-checked, then decoded in a worker process.
+
+Order of checks (each rejects before the next costs anything):
+
+1. ``Content-Length`` above the limit -> 413 before reading the body; bytes are counted while streaming too.
+2. Magic bytes of the first chunk -> 415 for anything but OpenEXR, Radiance RGBE, PNG or JPEG.
+3. Header only (``relight.envmap.probe``: pure Python, allocates nothing) -> 422 for a truncated header, more
+   pixels than ``max_pixels`` or an aspect that is neither lat-long (2:1) nor a cube-map layout.
+4. Decoding (``worker.tasks.analyze_envmap``) in a Dask worker process, under the worker's memory limit and a
+   time limit (the worker is restarted if decoding overruns) -> 422 for corrupt data or NaN/Inf texels.
+
+The id is the SHA-256 of the uploaded bytes: uploading the same file twice returns the same map.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any, Final
+
+from distributed.scheduler import KilledWorker
+from sqlalchemy import select
+
+from client.models import EnvmapPublic
+from relight.errors import InputError
+from server.cluster import Cluster
+from server.config import Settings
+from server.db import Database, Envmap
+from server.problems import BadRequest, ContentTooLarge, NotFound, Unavailable, Unprocessable, UnsupportedMediaType
+from server.services.base import in_thread, utc
+from server.services.metrics import Metrics
+from worker import tasks
+from worker.blobs import BlobCorrupt, BlobMissing, BlobStore, BlobWriter, check_digest
+
+log = logging.getLogger("relight.server")
+
+#: File signatures accepted (OpenEXR spec "magic number"; Radiance "#?" program line; PNG and JPEG SOI).
+MAGIC: Final = {b"\x76\x2f\x31\x01": "exr", b"#?": "hdr", b"\x89PNG\r\n\x1a\n": "png", b"\xff\xd8\xff": "jpeg"}
+_SNIFF_BYTES: Final = 8
+ACCEPTED: Final = "OpenEXR (.exr), Radiance RGBE (.hdr), PNG or JPEG"
+
+
+def sniff(head: bytes) -> str | None:
+    """Format from the first bytes, or None."""
+    for magic, fmt in MAGIC.items():
+        if head.startswith(magic):
+            return fmt
+    return None
+
+
+def check_header_size(width: int, height: int, max_pixels: int) -> None:
+    """Reject sizes from the header alone (no allocation): too many pixels, or not an environment-map aspect."""
+    from relight.envmap import CUBE_LAYOUTS
+
+    pixels = width * height
+    if pixels > max_pixels:
+        raise Unprocessable(f"image is {width} x {height} = {pixels} pixels; the limit is {max_pixels} pixels",
+                            width=width, height=height)
+    cube = any(width * b == height * a and width % a == 0 for a, b in CUBE_LAYOUTS.values())
+    if width != 2 * height and not cube:
+        raise Unprocessable(f"image is {width} x {height}: an environment map must be a lat-long map with width = "
+                            "2 x height, or a cube map (6:1 or 1:6 strip, 4:3 or 3:4 cross)")
+
+
+class EnvmapService:
+    def __init__(self, settings: Settings, db: Database, store: BlobStore, cluster: Cluster, metrics: Metrics) -> None:
+        self.settings = settings
+        self.db = db
+        self.store = store
+        self.cluster = cluster
+        self.metrics = metrics
+        #: worker address running the analysis of each digest (from its "started" event): restarted on timeout
+        self.analysing_on: dict[str, str] = {}
+        self._cache: dict[str, EnvmapPublic] = {}
+
+    # ------------------------------------------------------------------------------------------------ reading
+    def _public(self, row: Envmap) -> EnvmapPublic:
+        return EnvmapPublic(
+            id=row.id, name=row.name, bytes=row.bytes, created_at=utc(row.created_at), **row.info,
+            links={"self": f"/envmaps/{row.id}", "preview": f"/envmaps/{row.id}/preview.png"},
+        )
+
+    def _get_row(self, envmap_id: str) -> Envmap | None:
+        with self.db.session() as s:
+            return s.get(Envmap, envmap_id)
+
+    async def get(self, envmap_id: str) -> EnvmapPublic:
+        cached = self._cache.get(envmap_id)
+        if cached is not None:
+            return cached
+        row = await in_thread(self._get_row, envmap_id)
+        if row is None:
+            raise NotFound(f"no environment map with id {envmap_id!r}")
+        pub = self._public(row)
+        self._cache[envmap_id] = pub
+        return pub
+
+    async def list(self, limit: int) -> list[EnvmapPublic]:
+        def q() -> list[Envmap]:
+            with self.db.session() as s:
+                return list(s.scalars(select(Envmap).order_by(Envmap.created_at.desc()).limit(limit)))
+
+        return [self._public(r) for r in await in_thread(q)]
+
+    async def preview(self, envmap_id: str) -> tuple[Path, str]:
+        row = await in_thread(self._get_row, envmap_id)
+        if row is None:
+            raise NotFound(f"no environment map with id {envmap_id!r}")
+        digest = row.info.get("preview_sha256")
+        if digest is None:
+            raise NotFound(f"environment map {envmap_id} has no preview")
+        try:
+            return await in_thread(self.store.verified_path, digest), digest
+        except (BlobMissing, BlobCorrupt):
+            info = await self._analyze(envmap_id)  # the preview is derived data: make it again
+            return await in_thread(self.store.verified_path, info["preview_sha256"]), info["preview_sha256"]
+
+    async def input_ok(self, envmap_id: str) -> None:
+        """Raise 503 if the uploaded bytes of a known map are gone or corrupt (they cannot be recomputed)."""
+        try:
+            await in_thread(self.store.verified_path, envmap_id)
+        except (BlobMissing, BlobCorrupt) as exc:
+            raise Unavailable(f"the stored bytes of environment map {envmap_id} are unusable ({exc}); upload the "
+                              "file again") from exc
+
+    # ------------------------------------------------------------------------------------------------ upload
+    async def ingest_stream(self, chunks: AsyncIterator[bytes], content_length: str | None,
+                            name: str | None) -> tuple[EnvmapPublic, bool]:
+        """Store and analyse an upload; returns the map and whether it is new (201) or known (200)."""
+        cap = self.settings.max_upload_bytes
+        if content_length is not None:
+            try:
+                declared = int(content_length)
+            except ValueError:
+                raise BadRequest(f"Content-Length must be an integer, got {content_length!r}") from None
+            if declared > cap:
+                self.metrics.inc("uploads_rejected_total")
+                raise ContentTooLarge(f"the body is {declared} bytes; the limit is {cap} bytes")
+        writer = self.store.writer()
+        try:
+            head = b""
+            sniffed = False
+            async for chunk in chunks:
+                if not chunk:
+                    continue
+                if writer.size + len(chunk) > cap:
+                    raise ContentTooLarge(f"the body exceeds the limit of {cap} bytes")
+                if not sniffed:
+                    head += chunk[: _SNIFF_BYTES - len(head)]
+                    if len(head) >= _SNIFF_BYTES:
+                        self._check_magic(head)
+                        sniffed = True
+                writer.write(chunk)
+            if writer.size == 0:
+                raise Unprocessable("the request body is empty: send the image file as the body")
+            if not sniffed:
+                self._check_magic(head)
+            digest = await in_thread(writer.finish)
+            return await self._ingest_file(writer, digest, name)
+        except BaseException as exc:
+            if isinstance(exc, ContentTooLarge | UnsupportedMediaType | Unprocessable):
+                self.metrics.inc("uploads_rejected_total")
+            writer.abort()
+            raise
+
+    def _check_magic(self, head: bytes) -> None:
+        if sniff(head) is None:
+            raise UnsupportedMediaType(f"unrecognised file type (the body starts with {head[:8].hex(' ')}); "
+                                       f"accepted formats are {ACCEPTED}")
+
+    async def ingest_path(self, path: Path) -> tuple[EnvmapPublic, bool]:
+        """Ingest a file from disk (preloading the sample maps)."""
+
+        async def chunks() -> AsyncIterator[bytes]:
+            with open(path, "rb") as fh:
+                while chunk := fh.read(1 << 20):
+                    yield chunk
+
+        return await self.ingest_stream(chunks(), None, path.name)
+
+    async def _ingest_file(self, writer: BlobWriter, digest: str, name: str | None) -> tuple[EnvmapPublic, bool]:
+        from relight.envmap import probe
+
+        try:
+            header = await in_thread(probe, writer.tmp_path)
+        except InputError as exc:
+            raise Unprocessable(str(exc)) from None
+        check_header_size(header.width, header.height, self.settings.max_pixels)
+        existing = await in_thread(self._get_row, digest)
+        if existing is not None and self.store.has(digest):
+            writer.abort()
+            return self._public(existing), False
+        await in_thread(self.store._install, writer.tmp_path, digest)
+        try:
+            info = await self._analyze(digest)
+        except BaseException:
+            if existing is None:
+                self.store.delete(digest)
+            raise
+        if existing is not None:
+            return self._public(existing), False
+        row = Envmap(id=digest, name=(name or None) and name[:255], bytes=writer.size, info=info)
+
+        def insert() -> Envmap:
+            with self.db.session() as s:
+                found = s.get(Envmap, digest)
+                if found is not None:
+                    return found
+                s.add(row)
+            return row
+
+        stored = await in_thread(insert)
+        self.metrics.inc("uploads_total")
+        return self._public(stored), stored is row
+
+    async def _analyze(self, digest: str) -> dict[str, Any]:
+        s = self.settings
+        fut = self.cluster.submit(
+            tasks.analyze_envmap, str(self.store.root), digest, key=f"relight-analyze-{digest}",
+            max_pixels=s.max_pixels, spectrum_lmax=s.spectrum_lmax,
+        )
+        try:
+            info: dict[str, Any] = await asyncio.wait_for(fut, s.decode_timeout_s)
+        except TimeoutError:
+            await self.cluster.cancel(fut)
+            addr = self.analysing_on.pop(f"envmap-{digest}", None)
+            if addr is not None:
+                await self.cluster.restart_worker(addr)
+            raise Unprocessable(f"decoding the upload took longer than {s.decode_timeout_s:g} s; it was stopped") \
+                from None
+        except InputError as exc:
+            raise Unprocessable(str(exc)) from None
+        except KilledWorker:
+            raise Unprocessable("decoding the upload crashed the worker process (corrupt data or over the memory "
+                                "limit)") from None
+        finally:
+            self.analysing_on.pop(f"envmap-{digest}", None)
+        return info
+
+    def known_digest(self, envmap_id: str) -> str:
+        try:
+            return check_digest(envmap_id)
+        except ValueError:
+            raise NotFound(f"no environment map with id {envmap_id!r}") from None

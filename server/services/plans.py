@@ -1,0 +1,120 @@
+"""Resolving a job request (map, BRDF, canonical parameters, job id) and planning it without computing."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy import select
+
+import relight
+from client.models import BrdfPublic, EnvmapPublic, JobCreate, Orders, OutputShape, PlanPublic, PredictedError
+from relight.errors import InputError
+from server.config import Settings
+from server.db import Database, Job
+from server.problems import Unavailable, Unprocessable
+from server.services.base import content_id, in_thread
+from server.services.brdfs import BrdfService
+from server.services.envmaps import EnvmapService
+from worker.blobs import BlobCorrupt, BlobMissing, BlobStore
+from worker.specs import to_core
+
+
+@dataclass(frozen=True)
+class Prepared:
+    envmap: EnvmapPublic
+    brdf: BrdfPublic
+    params: dict[str, Any]
+    job_id: str
+
+
+def job_id_for(envmap_id: str, brdf_id: str, params: dict[str, Any]) -> str:
+    """SHA-256 of (input digests, canonical parameters, algorithm version): the job's identity."""
+    return content_id({
+        "task": "prefilter", "algorithm_version": relight.ALGORITHM_VERSION, "envmap": envmap_id, "brdf": brdf_id,
+        "params": params,
+    })
+
+
+class PlanService:
+    def __init__(self, settings: Settings, db: Database, store: BlobStore, envmaps: EnvmapService,
+                 brdfs: BrdfService) -> None:
+        self.settings = settings
+        self.store = store
+        self.db = db
+        self.envmaps = envmaps
+        self.brdfs = brdfs
+
+    def canonical_params(self, create: JobCreate) -> dict[str, Any]:
+        """Explicit defaults (epsilon = the core's default when no order is given) and the configured limits."""
+        from relight.prefilter import DEFAULT_EPSILON
+
+        s = self.settings
+        if create.order is not None and create.order > s.max_order:
+            raise Unprocessable(f"order: {create.order} is above this server's limit of {s.max_order}")
+        if create.p_order is not None and create.p_order > s.max_p_order:
+            raise Unprocessable(f"p_order: {create.p_order} is above this server's limit of {s.max_p_order}")
+        if create.size is not None and create.size > s.max_size:
+            raise Unprocessable(f"size: {create.size} is above this server's limit of {s.max_size}")
+        if create.p_order is not None and create.order is None:
+            raise Unprocessable(f"p_order ({create.p_order}) needs an explicit order as well")
+        epsilon = create.epsilon
+        if epsilon is None and create.order is None:
+            epsilon = DEFAULT_EPSILON
+        return {"epsilon": epsilon, "order": create.order, "p_order": create.p_order, "size": create.size}
+
+    async def prepare(self, create: JobCreate) -> Prepared:
+        env = await self.envmaps.get(create.envmap)
+        brdf = await self.brdfs.resolve(create.brdf)
+        params = self.canonical_params(create)
+        return Prepared(env, brdf, params, job_id_for(env.id, brdf.id, params))
+
+    async def plan_prepared(self, prep: Prepared) -> PlanPublic:
+        from worker.planning import plan_job
+
+        def run() -> dict[str, Any]:
+            from server.services.tradeoffs import plan_seconds
+
+            spec = to_core(prep.brdf.spec, self.store)
+            raw = plan_job(prep.envmap.model_dump(mode="json"), spec, prep.params)
+            raw["predicted_seconds"], raw["cost_model"] = plan_seconds(  # the calibrated cost model
+                raw, spec, prep.params, prep.envmap.height, prep.envmap.width)
+            return raw
+
+        try:
+            raw = await in_thread(run)
+        except (InputError, ValueError) as exc:
+            raise Unprocessable(str(exc)) from None
+        except (BlobMissing, BlobCorrupt) as exc:
+            raise Unavailable(f"the measured BRDF file of {prep.brdf.id} is unusable ({exc}); upload it again") \
+                from None
+        if not raw["cost_model"]["calibrated"]:
+            from server.services.tradeoffs import start_calibration
+
+            start_calibration(self.envmaps.cluster)
+        s = self.settings
+        f_b, p_b = raw["orders"]["F_B"], raw["orders"]["P_B"]
+        if f_b > s.max_order:
+            raise Unprocessable(f"the tolerance epsilon={prep.params['epsilon']} needs order F = {f_b}, above this "
+                                f"server's limit of {s.max_order}; give a larger epsilon or an explicit order")
+        if p_b > s.max_p_order:
+            raise Unprocessable(f"the tolerance needs view order P = {p_b}, above this server's limit of "
+                                f"{s.max_p_order}")
+        if raw["size"] > s.max_size:
+            raise Unprocessable(f"the output would have S = {raw['size']} rows, above this server's limit of "
+                                f"{s.max_size}; give an explicit smaller size")
+
+        def finished() -> bool:
+            with self.db.session() as sess:
+                return sess.scalar(select(Job.state).where(Job.id == prep.job_id)) == "succeeded"
+
+        return PlanPublic(
+            job_id=prep.job_id, cached=await in_thread(finished), representation=raw["representation"],
+            reason=raw["reason"], orders=Orders(**raw["orders"]),
+            predicted_error=PredictedError(**raw["predicted_error"]),
+            predicted_seconds=raw["predicted_seconds"], output=OutputShape(**raw["output"]),
+            cost_model=raw["cost_model"],
+        )
+
+    async def plan(self, create: JobCreate) -> PlanPublic:
+        return await self.plan_prepared(await self.prepare(create))

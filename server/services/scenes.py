@@ -1,0 +1,94 @@
+"""Scenes as jobs (``POST /scenes``): store a scene, plan it and run the plan in a worker (``relight.planner``).
+
+The scene is validated twice before anything runs: by the pydantic model (shapes, ranges, exactly one of a
+tolerance or a time budget) and by the core's own parser (``relight.planner.scene_from_dict``: distances beyond the
+bounding radius, unique names, every material parsed). Materials are resolved like every BRDF reference of the API
+(an id from ``POST /brdfs``, a spec object or a spec string) and stored by their canonical spec, so the scene's id
+(the SHA-256 of its canonical form) does not depend on how a material was written. The run's files (one SHRM per
+object, its view map, previews) go into the blob store; ``GET /scenes/{id}/files/{name}`` serves them verified.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from fastapi import Request
+
+from client.models import JobState, SceneCreate, ScenePublic
+from relight.errors import InputError
+from server.problems import Conflict, NotFound, Unprocessable
+from server.services.base import aware, in_thread, utc
+from server.services.tradeoffs import Analysis, AnalysisService, _service
+from worker.blobs import BlobCorrupt, BlobMissing
+from worker.specs import to_core
+
+
+class SceneService(AnalysisService):
+    kind = "scene"
+
+    def task(self) -> Callable[..., Any]:
+        from worker.analysis import run_scene
+
+        return run_scene
+
+    def public(self, row: Analysis) -> ScenePublic:
+        result = row.result or {}
+        links = {"self": f"/scenes/{row.id}"}
+        for name in (result.get("files") or {}):
+            links[name] = f"/scenes/{row.id}/files/{name}"
+        return ScenePublic(
+            id=row.id, state=JobState(row.state), failure_reason=row.failure_reason, scene=row.request["scene"],
+            plan=result.get("plan"), result=result.get("result"), files=result.get("files"),
+            created_at=utc(row.created_at), finished_at=aware(row.finished_at), links=links,
+        )
+
+    async def submit(self, create: SceneCreate) -> tuple[ScenePublic, int]:
+        env = await self.envmaps.get(create.environment)
+        await self.envmaps.input_ok(env.id)
+        objects = []
+        for k, obj in enumerate(create.objects):
+            brdf = await self.brdfs.resolve(obj.material)
+            item: dict[str, Any] = {"name": obj.name or f"object{k}", "shape": obj.shape, "size": obj.size,
+                                    "distance": obj.distance, "material": brdf.spec}
+            if obj.view is not None:
+                item["view"] = obj.view
+            objects.append(item)
+        scene = {"name": create.name, "environment": env.id, "objects": objects, "epsilon": create.epsilon,
+                 "time_budget_s": create.time_budget_s, "size": create.size}
+
+        def check() -> None:  # the core's validation is the authority (distances, names, materials)
+            from relight.planner import scene_from_dict
+
+            core = {**scene, "objects": [{**o, "material": to_core(o["material"], self.store)} for o in objects]}
+            scene_from_dict(core)
+
+        try:
+            await in_thread(check)
+        except InputError as exc:
+            raise Unprocessable(str(exc)) from None
+        row, status = await self.submit_request({"scene": scene, "preview_size": create.preview_size})
+        return self.public(row), status
+
+    async def get(self, scene_id: str) -> ScenePublic:
+        return self.public(await self.row(scene_id))
+
+    async def file(self, scene_id: str, name: str) -> tuple[Path, str, str]:
+        """(verified path, digest, media type) of one output file of a finished scene."""
+        row = await self.row(scene_id)
+        if row.state != JobState.succeeded:
+            raise Conflict(f"scene {scene_id} is {row.state}; it has no files yet", state=row.state)
+        info = ((row.result or {}).get("files") or {}).get(name)
+        if info is None:
+            raise NotFound(f"scene {scene_id} has no file {name!r}")
+        try:
+            path = await in_thread(self.store.verified_path, str(info["sha256"]))
+        except (BlobMissing, BlobCorrupt) as exc:
+            raise NotFound(f"the file {name!r} of scene {scene_id} is gone ({exc}); submit the scene again") from None
+        return path, str(info["sha256"]), str(info.get("media_type", "application/octet-stream"))
+
+
+async def scene_service(request: Request) -> SceneService:
+    svc: SceneService = _service(request, "scene_service", SceneService)
+    return svc

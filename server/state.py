@@ -1,0 +1,81 @@
+"""The service objects of one server process, created at start-up and closed at shutdown."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from server.cluster import Cluster
+from server.config import Settings
+from server.db import Database
+from server.services.base import in_thread
+from server.services.brdfs import BrdfService
+from server.services.envmaps import EnvmapService
+from server.services.events import EventHub
+from server.services.jobs import JobService
+from server.services.metrics import Metrics
+from server.services.plans import PlanService
+from worker.blobs import BlobStore
+from worker.progress import TOPIC
+
+log = logging.getLogger("relight.server")
+
+PRELOAD_SUFFIXES = (".exr", ".hdr", ".png", ".jpg", ".jpeg")
+
+
+@dataclass
+class Services:
+    settings: Settings
+    db: Database
+    store: BlobStore
+    cluster: Cluster
+    hub: EventHub
+    metrics: Metrics
+    envmaps: EnvmapService
+    brdfs: BrdfService
+    plans: PlanService
+    jobs: JobService
+    background: list[asyncio.Task[None]] = field(default_factory=list)
+
+    @classmethod
+    async def start(cls, settings: Settings) -> Services:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        db = Database(settings.resolved_database_url)
+        await in_thread(db.create_all)
+        store = BlobStore(settings.resolved_blob_dir, memory_bytes=settings.blob_cache_bytes)
+        cluster = Cluster(settings)
+        await cluster.start()
+        hub, metrics = EventHub(), Metrics()
+        envmaps = EnvmapService(settings, db, store, cluster, metrics)
+        brdfs = BrdfService(settings, db, store)
+        plans = PlanService(settings, db, store, envmaps, brdfs)
+        jobs = JobService(settings, db, store, cluster, hub, metrics, envmaps, plans)
+        jobs.start()
+        cluster.subscribe(TOPIC, jobs.on_event)
+        self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs)
+        await jobs.resume()
+        if settings.preload_dir is not None:
+            self.background.append(asyncio.create_task(self._preload(settings.preload_dir), name="relight-preload"))
+        return self
+
+    async def _preload(self, directory: Path) -> None:
+        from server.problems import ProblemError
+
+        for path in sorted(directory.glob("*")):
+            if path.suffix.lower() not in PRELOAD_SUFFIXES or not path.is_file():
+                continue
+            try:
+                env, created = await self.envmaps.ingest_path(path)
+                log.info("preloaded %s as %s%s", path.name, env.id, "" if created else " (known)")
+            except ProblemError as exc:
+                log.warning("preloading %s: %s", path, exc.detail)
+
+    async def stop(self) -> None:
+        for t in self.background:
+            t.cancel()
+        await asyncio.gather(*self.background, return_exceptions=True)
+        await self.jobs.close()
+        await self.cluster.close()
+        self.db.dispose()

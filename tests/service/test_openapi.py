@@ -1,0 +1,38 @@
+"""Property-based run of the OpenAPI schema (schemathesis) against the live server: no 5xx, responses conform.
+
+Bounded: a few examples per operation, no deadline per example, and a per-test time limit.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+import schemathesis
+from hypothesis import HealthCheck, settings
+from schemathesis.checks import (
+    content_type_conformance,
+    not_a_server_error,
+    response_schema_conformance,
+    status_code_conformance,
+)
+
+from .support import Server
+
+MAX_EXAMPLES = 8
+
+
+@pytest.fixture
+def api_schema(server: Server) -> schemathesis.BaseSchema:
+    return schemathesis.openapi.from_url(server.url + "/openapi.json")
+
+
+schema = schemathesis.pytest.from_fixture("api_schema")
+
+
+@pytest.mark.timeout(120)
+@schema.parametrize()
+@settings(max_examples=MAX_EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck), database=None)
+def test_no_server_errors(case: Any) -> None:
+    case.call_and_validate(checks=[not_a_server_error, status_code_conformance, content_type_conformance,
+                                   response_schema_conformance], timeout=60)

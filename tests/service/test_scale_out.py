@@ -1,0 +1,115 @@
+"""Scale-out: a separately started ``dask scheduler``, two ``relight worker`` processes, and a server pointed at
+them with ``RELIGHT_SCHEDULER``; the end-to-end path is the same. This server also has API keys and CORS on."""
+
+from __future__ import annotations
+
+import hashlib
+import socket
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+
+from client.errors import ApiError
+from client.models import JobState
+
+from .support import Proc, Server, assert_problem, base_env, library_map, read_exr, start_server, wait_until
+
+pytestmark = pytest.mark.timeout(240)
+API_KEY = "test-key-7f3a9c"
+ORIGIN = "https://viewer.example"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, list[Proc]]]:
+    tmp = tmp_path_factory.mktemp("scale-out")
+    address = f"tcp://127.0.0.1:{free_port()}"
+    procs: list[Proc] = []
+    try:
+        sched = Proc([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
+                      address.rsplit(":", 1)[1], "--no-dashboard"], base_env(), tmp / "scheduler.log").start()
+        procs.append(sched)
+        wait_until(lambda: "Scheduler at" in sched.output(), 60, "the scheduler to start")
+        for i in range(2):
+            procs.append(Proc([sys.executable, "-m", "relight.cli", "worker", "--scheduler", address, "--name",
+                               f"relight-w{i}", "--host", "127.0.0.1", "--memory-limit", "2GiB"], base_env(),
+                              tmp / f"worker{i}.log").start())
+        server = start_server(tmp / "server", {
+            "RELIGHT_SCHEDULER": address,
+            "RELIGHT_API_KEY_HASHES": hashlib.sha256(API_KEY.encode()).hexdigest(),
+            "RELIGHT_CORS_ORIGINS": ORIGIN,
+            "RELIGHT_MAX_UPLOAD_BYTES": str(64 << 20),  # room for a MERL file (35 MB)
+        })
+        procs.append(server)
+        with server.client(api_key=API_KEY) as c:
+            wait_until(lambda: c.health().workers == 2, 60, "both workers to join the scheduler", interval=0.2)
+        yield server, procs
+    finally:
+        for p in reversed(procs):
+            p.stop()
+
+
+def test_end_to_end_on_external_cluster(cluster: tuple[Server, list[Proc]], sample_exr: bytes) -> None:
+    server, _ = cluster
+    with server.client(api_key=API_KEY) as c:
+        assert c.health().scheduler.startswith("tcp://127.0.0.1:")
+        env = c.upload_envmap(sample_exr)
+        plan = c.plan(env.id, {"kind": "phong", "s": 32}, epsilon=0.01)
+        job = c.submit(env.id, {"kind": "phong", "s": 32}, epsilon=0.01)
+        assert job.id == plan.job_id
+        stages = [u.stage for u in c.events(job.id, timeout=60)]
+        final = c.get_job(job.id)
+        assert final.state == JobState.succeeded, final
+        assert final.worker is not None and final.worker.startswith("tcp://127.0.0.1:")
+        assert "done" in stages
+        got = read_exr(c.download(job.id))[""]
+        expected = library_map(sample_exr, "phong:s=32", epsilon=0.01)
+        assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
+
+
+def test_api_keys_and_cors(cluster: tuple[Server, list[Proc]]) -> None:
+    server, _ = cluster
+    with httpx.Client(base_url=server.url, timeout=30) as http:
+        assert http.get("/health").status_code == 200  # health and metrics stay open
+        r = http.get("/jobs")
+        assert_problem(r, 401, "API key")
+        assert r.headers["www-authenticate"].startswith("Bearer")
+        assert_problem(http.get("/jobs", headers={"Authorization": "Bearer wrong"}), 401, "not valid")
+        assert http.get("/jobs", headers={"X-API-Key": API_KEY}).status_code == 200
+        pre = http.options("/jobs", headers={"Origin": ORIGIN, "Access-Control-Request-Method": "GET"})
+        assert pre.headers.get("access-control-allow-origin") == ORIGIN
+        other = http.options("/jobs", headers={"Origin": "https://evil.example",
+                                               "Access-Control-Request-Method": "GET"})
+        assert "access-control-allow-origin" not in other.headers
+    with server.client(api_key="wrong") as c, pytest.raises(ApiError) as info:
+        c.list_jobs()
+    assert info.value.status == 401
+
+
+def test_measured_merl_brdf(cluster: tuple[Server, list[Proc]], sample_exr: bytes, tmp_path: Path) -> None:
+    """A MERL file uploaded to the service becomes a BRDF id usable in jobs; no server path leaks out."""
+    from relight.brdf.measured import MERL_DIMS, write_merl
+
+    merl = tmp_path / "grey.binary"
+    write_merl(merl, np.full((*MERL_DIMS, 3), 0.5 / np.pi))  # a Lambertian-like measured BRDF
+    server, _ = cluster
+    with server.client(api_key=API_KEY) as c:
+        brdf = c.upload_measured_brdf(merl)
+        assert brdf.measured and brdf.kind == "merl" and set(brdf.spec) == {"kind", "sha256"}
+        assert c.upload_measured_brdf(merl).id == brdf.id
+        env = c.upload_envmap(sample_exr)
+        plan = c.plan(env.id, brdf.id, order=4, p_order=1, size=16)
+        assert plan.representation == "shrm"
+        job = c.wait(c.submit(env.id, brdf.id, order=4, p_order=1, size=16).id, timeout=180)
+        assert job.state == JobState.succeeded
+        manifest = c.get_shrm(job.id).model_dump_json()
+        assert str(server.args[server.args.index("--data") + 1]) not in manifest and '"path"' not in manifest

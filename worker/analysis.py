@@ -1,0 +1,113 @@
+"""Analysis tasks the server submits to Dask workers: the accuracy–time sweep, scenes, and the cost-model
+calibration. Plain functions: plain data in, plain data out; they never import FastAPI.
+
+* :func:`compute_tradeoff` — ``relight.tradeoff.sweep`` on an uploaded map (area-averaged to ``rows``).
+* :func:`run_scene` — ``relight.planner``: plan a scene and run it; every output file goes into the blob store and
+  the result lists their digests.
+* :func:`calibrate_costmodel` — ``relight.costmodel.load_calibration``: calibrates this machine once (a few seconds)
+  and caches it in a file, which the server's ``/plan`` then reads.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from worker.blobs import BlobStore
+from worker.specs import from_core, to_core
+
+#: Input rows a tradeoff works on unless the request says otherwise (its reference is O(S_L^2 S_B^2)).
+TRADEOFF_ROWS = 64
+#: Media types of the scene files, by suffix.
+MEDIA_TYPES = {".exr": "image/x-exr", ".json": "application/json", ".png": "image/png"}
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def _pixels(store: BlobStore, digest: str, max_pixels: int | None, rows: int | None) -> np.ndarray:
+    from relight.envmap import read_envmap, resample_latlong
+
+    env = read_envmap(store.read(digest), max_pixels=max_pixels)
+    px = np.asarray(env.pixels, dtype=np.float64)
+    if rows is not None and rows < px.shape[0]:
+        px = np.asarray(resample_latlong(px, rows), dtype=np.float64)
+    return px
+
+
+def compute_tradeoff(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
+    """Sweep both methods for one (map, BRDF) pair (``relight.tradeoff``).
+
+    ``job``: ``envmap`` (blob digest), ``brdf`` (service spec), ``params`` (``rows``, ``size``, ``epsilons``,
+    ``truncations``, ``view``; None for the defaults) and ``max_pixels``. Returns ``{"points": [...], "meta": {...}}``
+    (the CLI's ``tradeoff.json`` and ``tradeoff_meta.json``).
+    """
+    from relight.brdf.spec import parse_brdf
+    from relight.tradeoff import sweep
+
+    store = BlobStore(store_root)
+    params: dict[str, Any] = job.get("params") or {}
+    rows = int(params.get("rows") or TRADEOFF_ROWS)
+    px = _pixels(store, job["envmap"], job.get("max_pixels"), rows)
+    brdf = parse_brdf(to_core(job["brdf"], store))
+    kwargs: dict[str, Any] = {}
+    if params.get("truncations") is not None:
+        kwargs["truncations"] = params["truncations"]
+    if params.get("view") is not None:
+        kwargs["view"] = params["view"]
+    res = sweep(px, brdf, epsilons=params.get("epsilons"), size=params.get("size"), **kwargs)
+    res.meta["input"]["envmap"] = job["envmap"]
+    out: dict[str, Any] = _jsonable({"points": res.points, "meta": from_core(res.meta, store)})
+    return out
+
+
+def run_scene(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
+    """Plan and run a scene (``relight.planner``) on an uploaded map.
+
+    ``job``: ``scene`` (the scene's JSON form with ``environment`` = the map's digest and service BRDF specs) and
+    ``max_pixels``. The files of :func:`relight.planner.run_plan` go into the blob store; the result maps each file
+    name to its digest and media type.
+    """
+    from relight.planner import plan_scene, run_plan, scene_from_dict
+
+    store = BlobStore(store_root)
+    spec = dict(job["scene"])
+    spec["objects"] = [{**o, "material": to_core(o["material"], store)} for o in spec["objects"]]
+    scene = scene_from_dict(spec)
+    px = _pixels(store, scene.environment, job.get("max_pixels"), None)
+    plan = plan_scene(scene, px)
+    files: dict[str, dict[str, Any]] = {}
+    with tempfile.TemporaryDirectory(prefix="relight-scene-") as tmp:
+        result = run_plan(plan, tmp, preview_size=int(job.get("preview_size") or 0))
+        for path in sorted(Path(tmp).iterdir()):
+            if path.name in ("plan.json", "result.json"):
+                continue
+            files[path.name] = {"sha256": store.put_file(path), "bytes": path.stat().st_size,
+                                "media_type": MEDIA_TYPES.get(path.suffix, "application/octet-stream")}
+    out: dict[str, Any] = _jsonable({"plan": from_core(plan.data, store), "result": from_core(result, store),
+                                     "files": files})
+    return out
+
+
+def calibrate_costmodel() -> dict[str, Any]:
+    """Calibrate the cost model on this worker's machine unless a cached calibration exists; a summary."""
+    from relight import costmodel
+
+    cal = costmodel.load_calibration()
+    lo, hi = cal.ratio_range()
+    out: dict[str, Any] = _jsonable({"key": cal.key, "calibrated": cal.calibrated, "created": cal.created,
+                                     "seconds": cal.calibration_seconds, "ratio_range": [lo, hi]})
+    return out

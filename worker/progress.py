@@ -1,0 +1,95 @@
+"""Progress and cancellation for task functions running on a Dask worker.
+
+A task reports ``(stage, fraction)`` through a :class:`Reporter`. On a Dask worker each report becomes a Dask
+event (``Worker.log_event`` on topic :data:`TOPIC`); the server subscribes to the topic
+(``Client.subscribe_topic``) and stores and streams what it receives. Outside a worker (a direct call, a unit
+test) reports go to an optional callback.
+
+Reports are throttled here (at most one per ``min_interval`` seconds unless the stage changes) so a chatty loop
+cannot flood the scheduler. Every message carries the job id and the submission number, so the server can drop
+reports from a superseded submission.
+
+Cancellation: when the server cancels a job it releases the Dask future; the worker then marks the running
+task ``cancelled``. :meth:`Reporter.check_cancelled` looks at that state between stages and raises
+:class:`JobCancelled`, so a cancelled job stops at the next stage boundary instead of running to the end.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any, Final
+
+TOPIC: Final = "relight-progress"
+
+
+class JobCancelled(Exception):
+    """Raised inside a task whose future was cancelled."""
+
+
+def _current_worker() -> Any:
+    try:
+        from distributed import get_worker
+
+        return get_worker()
+    except (ImportError, ValueError):  # ValueError: not running on a worker
+        return None
+
+
+def _current_key() -> Any:
+    try:
+        from distributed.worker import thread_state  # type: ignore[attr-defined]
+    except ImportError:
+        return None
+    return getattr(thread_state, "key", None)
+
+
+class Reporter:
+    """Publishes stage/fraction updates for one job (see the module docstring)."""
+
+    def __init__(
+        self,
+        job_id: str,
+        submission: int = 0,
+        *,
+        min_interval: float = 0.1,
+        callback: Callable[[dict[str, Any]], None] | None = None,
+    ) -> None:
+        self.job_id = job_id
+        self.submission = submission
+        self.min_interval = min_interval
+        self.callback = callback
+        self._worker = _current_worker()
+        self._key = _current_key()
+        self._last_stage: str | None = None
+        self._last_time = 0.0
+
+    def emit(self, event: str, **fields: Any) -> None:
+        """Send one message now (no throttling): ``event`` is ``started``, ``progress`` ..."""
+        msg = {"job": self.job_id, "submission": self.submission, "event": event, "time": time.time(), **fields}
+        if self._worker is not None:
+            self._worker.log_event(TOPIC, msg)
+        if self.callback is not None:
+            self.callback(msg)
+
+    def started(self) -> None:
+        worker = getattr(self._worker, "address", None) if self._worker is not None else None
+        self.emit("started", worker=worker)
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        """Report that the job is in ``stage`` with overall completion ``fraction`` in [0, 1]."""
+        self.check_cancelled()
+        now = time.monotonic()
+        if stage == self._last_stage and now - self._last_time < self.min_interval:
+            return
+        self._last_stage = stage
+        self._last_time = now
+        self.emit("progress", stage=stage, fraction=float(min(max(fraction, 0.0), 1.0)))
+
+    def check_cancelled(self) -> None:
+        """Raise :class:`JobCancelled` if the Dask task running this job has been cancelled."""
+        if self._worker is None or self._key is None:
+            return
+        ts = self._worker.state.tasks.get(self._key)
+        if ts is None or ts.state in ("cancelled", "released", "forgotten"):
+            raise JobCancelled(f"job {self.job_id} was cancelled")

@@ -1,0 +1,239 @@
+"""Entry points the server submits to Dask workers. Plain functions: arguments and results are plain data.
+
+* :func:`analyze_envmap` decodes an uploaded environment map (untrusted bytes: only ever in a worker process,
+  size-capped from the header first) and returns its metadata, SH power spectrum and a preview.
+* :func:`compute_shrm` is the single job entry point: it dispatches on the BRDF (radially symmetric lobes go
+  through ``relight.prefilter.prefilter_radial``; general BRDFs through the SHRM prefilter) and writes the
+  result files (:mod:`worker.results`).
+* :func:`render_reflection` evaluates a result for one view direction (seed 000 eq. 12).
+
+Inputs and outputs go through the shared blob store (:mod:`worker.blobs`) whose root the server passes in.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from worker.blobs import BlobStore
+from worker.progress import Reporter
+from worker.results import Layer, existing_result, load_manifest, strip_volatile, write_result
+from worker.specs import from_core, to_core
+
+#: Rows of the PNG preview of an uploaded map.
+PREVIEW_ROWS = 256
+#: Seconds between progress reports of the (test-only) artificial delay loop.
+_DELAY_STEP = 0.05
+
+
+def warmup() -> dict[str, Any]:
+    """Import the numerical core once per worker process so the first job does not pay for it."""
+    import relight
+    import relight.brdf.spec  # noqa: F401
+    import relight.envmap  # noqa: F401
+    import relight.prefilter  # noqa: F401
+
+    return {"pid": os.getpid(), "algorithm_version": relight.ALGORITHM_VERSION}
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Environment maps
+
+
+def analyze_envmap(
+    store_root: str, digest: str, *, max_pixels: int, spectrum_lmax: int, preview_rows: int = PREVIEW_ROWS
+) -> dict[str, Any]:
+    """Decode the uploaded map ``digest`` and describe it.
+
+    Returns format, size, layout, per-channel range and mean, the negative texels clamped, the luminance SH power
+    spectrum ``E_l`` (l <= min(spectrum_lmax, H - 1)) with the total energy, and the digest of a PNG preview.
+    Raises ``relight.errors.InputError`` for anything the core rejects (non-finite pixels, bad size ...).
+    """
+    from relight.envmap import read_envmap, resample_latlong, write_png_preview
+    from relight.prefilter import project_lighting
+
+    reporter = Reporter(f"envmap-{digest}")
+    reporter.started()
+    store = BlobStore(store_root)
+    data = store.read(digest)
+    env = read_envmap(data, max_pixels=max_pixels)
+    px = env.pixels
+    h, w = env.height, env.width
+    lmax = max(0, min(spectrum_lmax, h - 1))
+    lighting = project_lighting(px, lmax)
+    spectrum = lighting.band_energy()
+    preview = px if h <= preview_rows else resample_latlong(px, preview_rows)
+    with store.new_file(".png") as tmp:
+        write_png_preview(tmp, preview)
+        preview_digest = store.put_file(tmp)
+    flat = px.reshape(-1, 3).astype(np.float64)
+    return {
+        "format": env.source_format,
+        "layout": env.layout,
+        "width": w,
+        "height": h,
+        "min": [float(v) for v in flat.min(axis=0)],
+        "max": [float(v) for v in flat.max(axis=0)],
+        "mean": [float(v) for v in flat.mean(axis=0)],
+        "negatives_clamped": int(env.negatives_clamped),
+        "min_negative": float(env.min_negative),
+        "non_finite": 0,  # maps with NaN/Inf texels are rejected by read_envmap
+        "spectrum_lmax": lmax,
+        "sh_power_spectrum": [float(v) for v in spectrum],
+        "total_energy": float(lighting.total_energy),
+        "preview_sha256": preview_digest,
+    }
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Jobs
+
+
+def _artificial_delay(seconds: float, report: Reporter) -> None:
+    """TEST ONLY (settings.test_job_delay_s): wait in small steps, reporting progress and honouring cancel."""
+    if seconds <= 0:
+        return
+    steps = max(1, math.ceil(seconds / _DELAY_STEP))
+    for i in range(steps):
+        report("test_delay", 0.5 * i / steps)
+        time.sleep(seconds / steps)
+
+
+def uses_reflection_map(brdf: Any, params: dict[str, Any]) -> bool:
+    """The dispatch rule: one radially symmetric lobe (and no view order asked for) is a plain reflection map
+    (``prefilter_radial``); everything else, sums of lobes included, is an SHRM (``create_shrm``)."""
+    from relight.brdf.base import RadialLobe
+
+    return isinstance(brdf, RadialLobe) and not params.get("p_order")
+
+
+def _radial(
+    pixels: NDArray[np.float32], lobe: Any, params: dict[str, Any], report: Reporter
+) -> tuple[list[Layer], str, dict[str, Any], dict[str, str]]:
+    from relight.prefilter import prefilter_radial
+
+    res = prefilter_radial(pixels, lobe, epsilon=params.get("epsilon"), order=params.get("order"),
+                           size=params.get("size"))
+    report("writing", 0.9)
+    layers = [Layer(name="", p=0, q=0, pixels=res.map.astype(np.float32))]
+    attributes = {"relight.report": json.dumps(_jsonable(strip_volatile(res.report)), sort_keys=True)}
+    return layers, "reflection_map", res.report, attributes
+
+
+def _general(
+    pixels: NDArray[np.float32], lobe: Any, params: dict[str, Any], report: Reporter
+) -> tuple[list[Layer], str, dict[str, Any], dict[str, str]]:
+    from worker import shrm_adapter
+
+    return shrm_adapter.prefilter(pixels, lobe, params, report)
+
+
+def compute_shrm(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
+    """Run one prefiltering job and store its result (the only job entry point; dispatches on the BRDF).
+
+    ``job`` holds ``job_id``, ``submission``, ``envmap`` (input blob digest), ``brdf`` (canonical spec),
+    ``params`` (``epsilon`` / ``order`` / ``p_order`` / ``size``), ``max_pixels``, ``force`` (ignore an
+    existing result) and ``test_delay_s`` (TEST ONLY: an artificial delay before computing).
+    Returns the manifest digest and manifest, whether an existing result was reused, and timings.
+    """
+    from relight.brdf.spec import parse_brdf
+    from relight.envmap import read_envmap
+
+    t0 = time.perf_counter()
+    job_id: str = job["job_id"]
+    report = Reporter(job_id, int(job.get("submission", 0)))
+    report.started()
+    store = BlobStore(store_root)
+    if not job.get("force"):
+        found = existing_result(store, job_id)
+        if found is not None:
+            digest, manifest = found
+            report("done", 1.0)
+            return {"manifest_sha256": digest, "manifest": manifest, "reused": True,
+                    "task_seconds": time.perf_counter() - t0, "compute_seconds": 0.0}
+    _artificial_delay(float(job.get("test_delay_s") or 0.0), report)
+    report("loading", 0.5)
+    env = read_envmap(store.read(job["envmap"]), max_pixels=job.get("max_pixels"))
+    lobe = parse_brdf(to_core(job["brdf"], store))
+    params: dict[str, Any] = job.get("params", {})
+    report("prefiltering", 0.55)
+    t_compute = time.perf_counter()
+    if uses_reflection_map(lobe, params):
+        layers, representation, core_report, attributes = _radial(env.pixels, lobe, params, report)
+    else:
+        layers, representation, core_report, attributes = _general(env.pixels, lobe, params, report)
+    compute_seconds = time.perf_counter() - t_compute
+    report.check_cancelled()
+    import relight
+
+    description = {
+        "envmap": job["envmap"],
+        "brdf": job["brdf"],
+        "params": params,
+        "algorithm_version": relight.ALGORITHM_VERSION,
+        "relight_version": relight.__version__,
+        "center": core_report.get("center"),
+        "orders": core_report.get("orders"),
+        "predicted": core_report.get("predicted"),
+        "input": {"negatives_clamped": env.negatives_clamped, "min_negative": env.min_negative,
+                  "height": env.height, "width": env.width},
+    }
+    attributes = {k: json.dumps(from_core(json.loads(v), store), sort_keys=True) for k, v in attributes.items()}
+    digest, manifest = write_result(store, job_id, layers, representation=representation,
+                                    description=from_core(_jsonable(strip_volatile(description)), store),
+                                    exr_attributes=attributes)
+    report("done", 1.0)
+    return {"manifest_sha256": digest, "manifest": manifest, "reused": False,
+            "task_seconds": time.perf_counter() - t0, "compute_seconds": compute_seconds,
+            "timings": _jsonable(core_report.get("timings"))}
+
+
+def _jsonable(obj: Any) -> Any:
+    """Plain JSON types (NumPy scalars to Python, non-finite floats to None)."""
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Views
+
+
+def render_reflection(store_root: str, manifest_digest: str, view: list[float]) -> str:
+    """Evaluate a result for the unit view direction ``view`` (seed 000 eq. 12); returns the EXR blob digest.
+
+    The output is an S x 2S lat-long map indexed by the reflection vector R (``docs/conventions.md``).
+    """
+    from relight.envmap import write_exr
+
+    store = BlobStore(store_root)
+    manifest = load_manifest(store, manifest_digest)
+    image = _reflection_image(store, manifest, np.asarray(view, dtype=np.float64))
+    with store.new_file(".exr") as tmp:
+        write_exr(tmp, image.astype(np.float32), attributes={"relight.view": ",".join(f"{v:.9g}" for v in view)})
+        return store.put_file(tmp)
+
+
+def _reflection_image(store: BlobStore, manifest: dict[str, Any], view: NDArray[np.float64]) -> NDArray[np.float64]:
+    from relight.envmap import read_exr_layers
+    from worker import shrm_adapter
+
+    digest = manifest["files"]["coefficients.exr"]["sha256"]
+    if manifest["representation"] == "reflection_map":
+        layers, _ = read_exr_layers(store.read(digest))
+        orders = manifest.get("orders") or {}
+        return shrm_adapter.reflect_radial(np.asarray(layers[""], dtype=np.float64), str(manifest.get("center")),
+                                           int(orders.get("F_B", 0)), manifest.get("brdf") or {}, view)
+    return shrm_adapter.reflect(str(store.verified_path(digest)), view)
