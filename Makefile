@@ -6,7 +6,20 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest bench clean
+.PHONY: run test lint typecheck pytest jstest bench system-deps clean
+
+# Debian packages the tests need: chromium (real-browser tests, never a downloaded browser) and Mesa's EGL
+# (headless moderngl). Installed with apt when missing and we are root (CI is); otherwise say what is missing.
+system-deps:
+	@if [ ! -x /usr/bin/chromium ] || ! ldconfig -p | grep -q libEGL_mesa; then \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium libegl1 libegl-mesa0 libgl1-mesa-dri >/dev/null; \
+	  else echo "need root to apt-get install chromium libegl1 libegl-mesa0 libgl1-mesa-dri" >&2; exit 1; fi; \
+	fi
+
+web/node_modules/.installed: web/package.json web/package-lock.json
+	npm ci --prefix web --no-audit --no-fund
+	touch $@
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,7 +27,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-run: $(STAMP)
+run: $(STAMP) web/node_modules/.installed
 	$(BIN)/relight serve --host 127.0.0.1 --port 8000 --data .relight-data
 
 lint: $(STAMP)
@@ -23,13 +36,19 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy relight server worker client
 
-pytest: $(STAMP)
+jstest: web/node_modules/.installed
+	node --test web/test/
+
+pytest: $(STAMP) system-deps web/node_modules/.installed
 	$(BIN)/python -m pytest -q --timeout=900
 
-test: lint typecheck pytest
+test: lint typecheck pytest  # pytest also runs the JavaScript unit tests (tests/web/test_js_units.py)
 
-bench: $(STAMP)
+bench: $(STAMP) web/node_modules/.installed
 	$(BIN)/python bench/table4.py
+	$(BIN)/python bench/table5.py
+	$(BIN)/python bench/service.py
+	$(BIN)/python bench/viewer.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache web/node_modules

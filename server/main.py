@@ -14,6 +14,7 @@ from server import problems
 from server.api.router import include_routes
 from server.config import Settings, get_settings
 from server.state import Services
+from server.viewer import mount_viewer
 
 DESCRIPTION = """\
 Upload HDR environment maps, describe BRDFs, and get them prefiltered in frequency space into reflection maps and
@@ -47,4 +48,5 @@ def create_app(settings: Settings | None = None, *, on_ready: Callable[[FastAPI]
             expose_headers=["ETag", "Location", "Content-Location", "Retry-After"],
         )
     include_routes(app)
+    mount_viewer(app)  # after the API routes: static paths never shadow them
     return app

@@ -5,11 +5,12 @@ from __future__ import annotations
 from fastapi import FastAPI
 
 from server.api.deps import ApiKey
-from server.api.routes import brdfs, envmaps, health, jobs, plan, scenes, shrms, tradeoffs
+from server.api.routes import brdfs, envmaps, health, jobs, plan, render, scenes, shrms, tradeoffs
 
 
 def include_routes(app: FastAPI) -> None:
     """One level of routers (nesting routers costs a matching pass per level on every request)."""
     app.include_router(health.router)
-    for r in (envmaps.router, brdfs.router, plan.router, shrms.router, jobs.router, tradeoffs.router, scenes.router):
+    for r in (envmaps.router, brdfs.router, plan.router, shrms.router, jobs.router, tradeoffs.router, scenes.router,
+              render.router):
         app.include_router(r, dependencies=[ApiKey])

@@ -1,0 +1,90 @@
+"""``/scenes``: store a scene, run its plan as a job, read the plan, the result and the files."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import httpx
+import pytest
+
+from client.sdk import RelightClient
+
+from .support import assert_healthy, assert_problem, read_exr
+
+pytestmark = pytest.mark.timeout(240)
+UNKNOWN = "f" * 64
+
+
+def wait_done(http: httpx.Client, path: str, timeout: float = 180.0) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout
+    while True:
+        body: dict[str, Any] = http.get(path).json()
+        if body["state"] in ("succeeded", "failed", "cancelled"):
+            return body
+        assert time.monotonic() < deadline, f"{path} still {body['state']} after {timeout} s"
+        time.sleep(0.2)
+
+
+def scene(env_id: str, **kw: Any) -> dict[str, Any]:
+    return {"environment": env_id, "epsilon": 0.05, "size": 16, "preview_size": 16, "objects": [
+        {"name": "chalk", "size": 1, "distance": 10, "material": "lambert:albedo=0.7"},
+        {"name": "metal", "shape": "teapot", "size": 1, "distance": 2, "material": {"kind": "microfacet",
+                                                                                  "sigma": 0.4},
+         "view": [0, 0.5, 1]},
+    ], **kw}
+
+
+def test_scene_job_plan_result_and_files(client: RelightClient, http: httpx.Client, sample_exr: bytes) -> None:
+    env = client.upload_envmap(sample_exr)
+    r = http.post("/scenes", json=scene(env.id))
+    assert r.status_code == 202, r.text
+    sid = r.json()["id"]
+    assert r.headers["location"] == f"/scenes/{sid}"
+    done = wait_done(http, f"/scenes/{sid}")
+    assert done["state"] == "succeeded", done
+    objs = {o["name"]: o for o in done["plan"]["objects"]}
+    assert objs["chalk"]["viewer"] == "distant" and objs["metal"]["viewer"] == "near"
+    kinds = [(c["kind"], c["representation"]) for c in done["plan"]["computations"]]
+    assert kinds == [("lambert", "irradiance"), ("microfacet", "shrm")]
+    assert any(e["effect"] == "shadowing" and not e["simulated"] for e in objs["metal"]["effects"])
+    assert done["result"]["lighting_projections"] == 1
+    assert {"chalk.view.exr", "metal.shrm.exr", "metal.sphere.png"} <= set(done["files"])
+    f = http.get(f"/scenes/{sid}/files/chalk.view.exr")
+    assert f.status_code == 200 and f.headers["etag"] == f'"{done["files"]["chalk.view.exr"]["sha256"]}"'
+    assert read_exr(f.content)[""].shape == (16, 32, 3)
+    assert http.get(f"/scenes/{sid}/files/chalk.view.exr", headers={"If-None-Match": f.headers["etag"]}
+                    ).status_code == 304
+    assert_problem(http.get(f"/scenes/{sid}/files/nothing.exr"), 404, "nothing.exr")
+    # the same scene again: 200 with the stored result
+    again = http.post("/scenes", json=scene(env.id))
+    assert again.status_code == 200 and again.json()["id"] == sid and again.json()["state"] == "succeeded"
+    assert_healthy(http)
+
+
+@pytest.mark.parametrize(("patch", "status", "fragment"), [
+    ({"epsilon": None}, 422, "exactly one"),
+    ({"time_budget_s": 1.0}, 422, "exactly one"),
+    ({"objects": []}, 422, "objects"),
+    ({"environment": UNKNOWN}, 404, UNKNOWN),
+    ({"size": 4}, 422, "size"),
+])
+def test_invalid_scenes(client: RelightClient, http: httpx.Client, sample_exr: bytes, patch: dict[str, Any],
+                        status: int, fragment: str) -> None:
+    env = client.upload_envmap(sample_exr)
+    assert_problem(http.post("/scenes", json=scene(env.id, **patch)), status, fragment)
+
+
+def test_scene_checks_of_the_core(client: RelightClient, http: httpx.Client, sample_exr: bytes) -> None:
+    env = client.upload_envmap(sample_exr)
+    body = scene(env.id)
+    body["objects"][0]["distance"] = 0.5  # the viewer inside the object
+    assert_problem(http.post("/scenes", json=body), 422, "outside the object")
+    body = scene(env.id)
+    body["objects"][1]["name"] = "chalk"
+    assert_problem(http.post("/scenes", json=body), 422, "duplicate name")
+    body = scene(env.id)
+    body["objects"][0]["material"] = "phong:s=-1"
+    assert_problem(http.post("/scenes", json=body), 422, "brdf")
+    assert_problem(http.get(f"/scenes/{UNKNOWN}"), 404, UNKNOWN)
+    assert_problem(http.get(f"/scenes/{UNKNOWN}/files/x.exr"), 404, UNKNOWN)

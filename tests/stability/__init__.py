@@ -1,0 +1,1 @@
+"""Hard-case stability suite: property-based (hypothesis, derandomized) and table-driven tests across the core."""
