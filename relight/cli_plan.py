@@ -24,7 +24,7 @@ from relight.errors import InputError
 
 #: Input rows the tradeoff works on by default (area-averaged, ``relight.envmap.resample_latlong``): its reference
 #: is the untruncated angular method, O(S_L^2 S_B^2).
-DEFAULT_TRADEOFF_ROWS = 128
+DEFAULT_TRADEOFF_ROWS = 64
 
 
 def _floats(text: str | None, what: str) -> list[float] | None:

@@ -21,7 +21,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from relight.errors import InputError
+
 FloatArray = NDArray[np.float64]
+
+#: Largest accepted texel magnitude: energies (squares summed over ~1e8 texels) stay far inside float64's range
+#: (1e308). Every float32 value (EXR files: at most 3.4e38) is accepted.
+MAX_RADIANCE = 1e100
 
 #: Rec. 709 / sRGB luminance weights (ITU-R BT.709-6, item 3.2).
 LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
@@ -101,12 +107,40 @@ def luminance(rgb: NDArray[np.floating]) -> FloatArray:
 
 
 def check_latlong_shape(shape: tuple[int, ...]) -> tuple[int, int]:
-    """Validate an (H, W[, C]) lat-long shape with W = 2H; return (H, W)."""
+    """Validate an (H, W[, C]) lat-long shape with W = 2H; return (H, W). Raises InputError (a ValueError)."""
     if len(shape) < 2:
-        raise ValueError(f"a lat-long map needs at least 2 dimensions, got shape {shape}")
+        raise InputError(f"a lat-long map needs at least 2 dimensions, got shape {shape}")
     h, w = int(shape[0]), int(shape[1])
     if h == 0 or w == 0:
-        raise ValueError(f"a lat-long map cannot be empty, got {w} x {h}")
+        raise InputError(f"a lat-long map cannot be empty, got {w} x {h}")
     if w != 2 * h:
-        raise ValueError(f"a lat-long map must have width = 2 x height, got {w} x {h}")
+        raise InputError(f"a lat-long map must have width = 2 x height, got {w} x {h}")
     return h, w
+
+
+def require_rgb_latlong(pixels: NDArray[np.floating]) -> NDArray[np.floating]:
+    """The environment-map array every prefilter accepts: (H, W, 3), W = 2H, real and finite.
+
+    Raises InputError quoting the shape, or the count and first position of non-finite texels.
+    """
+    a = np.asarray(pixels)
+    check_latlong_shape(a.shape)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise InputError(f"expected an (H, W, 3) RGB lat-long map, got shape {a.shape}")
+    if not np.issubdtype(a.dtype, np.floating) and not np.issubdtype(a.dtype, np.integer):
+        raise InputError(f"environment-map pixels must be real numbers, got dtype {a.dtype}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        i, j, _ = np.argwhere(bad)[0]
+        raise InputError(
+            f"{int(bad.sum())} non-finite pixel values (NaN/Inf), first at row {int(i)}, column {int(j)}"
+        )
+    wide = a.dtype.kind == "f" and a.dtype.itemsize >= 8  # narrower types cannot hold such values
+    huge = np.abs(a) > MAX_RADIANCE if wide else np.zeros(a.shape, bool)
+    if huge.any():
+        i, j, _ = np.argwhere(huge)[0]
+        raise InputError(
+            f"{int(huge.sum())} pixel values beyond {MAX_RADIANCE:g} (not radiance: their energy would overflow), "
+            f"first at row {int(i)}, column {int(j)}"
+        )
+    return a

@@ -20,7 +20,8 @@ Notes: the terms
   Legendre part ``S_B (F + 1)^2`` is the paper's ``F S_B^2`` per map, ``(P + 1)^2`` maps for a general SHRM,
   P + 1 without azimuthal dependence, 1 for a radial lobe (Table 3's ``F_B P_B^2 S_B^2``). Spin-weighted syntheses
   (q != 0, two output fields) get their own constants: ``syn_px``/``syn_leg`` (q = 0) and ``synq_px``/``synq_leg``
-  (``S_B 2S_B log2(2 S_B)`` and ``S_B (F + 1)^2`` summed over the syntheses), plus ``syn_call`` per call.
+  (``S_B 2S_B log2(2 S_B)`` and ``S_B (F + 1)^2`` summed over the syntheses), plus ``syn_call`` per call and
+  ``comp_call`` per component (its report and predicted errors).
 * **BRDF coefficients** (App. C step 1). A radial lobe's ``Lambda_l rho_l`` by composite quadrature costs
   ``O(F S_rho)`` with S_rho the quadrature nodes (about ``32 (F + 2)``, more for narrow lobes): ``lobe1d = sum over
   the order search's probes of (F + 1) x nodes`` (:func:`radial_nodes`), and the ringing bound
@@ -29,14 +30,18 @@ Notes: the terms
   T_rho^2)``: ``brdf_evals`` = grid points x this lobe's seconds per ``rho_hat`` evaluation (measured live by
   :func:`lobe_eval_seconds`, so a costly model such as Torrance–Sparrow is priced as such) and ``brdf_ops`` =
   grid points x (Q + 1) for the cosine transform and Legendre sums.
-* **One view** (eq. 8 and eq. 12, ``relight.shrm.reflect``): ``view_px`` = maps x ``S_B 2S_B``,
-  ``eq8_px = sum_p (2p + 1)^2 S_B 2S_B`` for general components.
+* **One view** (eq. 8 and eq. 12, ``relight.shrm.reflect`` on a fresh SHRM): ``view_base = S_B 2S_B`` (the
+  normals of every pixel), ``view_px`` = maps x ``S_B 2S_B`` (the eq. 12 sum), ``eq8_px = sum_p (2p + 1)^2
+  S_B 2S_B`` (eq. 8's rotation of a general component) and ``lookup_px = S_B 2S_B`` per N- or T-centred component
+  (its bilinear lookup at N or T(N)).
 * **Angular method** (``relight.reference.reference_radial``): ``ang_pairs`` = (output pixel, input pixel) pairs
   visited. App. D's ``W = (1 - cos theta*) / 2`` counts the pixels inside the lobe's cone; this implementation visits
   the whole latitude band that can meet the cone, ``W_band ~ 2 theta* / pi`` of the rows, so ``ang_pairs =
-  W_band S_L 2S_L S_B 2S_B`` exactly (both W are reported). For view-dependent BRDFs
-  (``relight.reference_view``): ``angv_pairs`` pairs visited and ``angv_evals`` = lobe evaluations (pairs inside
-  the cones, or every visited pair where a group's cones fill more than 30 % of its band) x seconds per evaluation.
+  W_band S_L 2S_L S_B 2S_B`` exactly (:func:`angular_pairs`; the tradeoff reports both W). For view-dependent
+  BRDFs (``relight.reference_view``): ``angv_pairs`` pairs visited and ``angv_evals`` = lobe evaluations (the pairs
+  inside the cones, or every pair of a row block whose cones fill more than 30 % of it) x seconds per evaluation
+  (:func:`integrand_eval_seconds`, timed the way that code evaluates the lobe), counted block by block as that code
+  runs (:func:`angular_view_counts`).
 * ``lobe_call`` and ``ring_call``: fixed costs per lobe and per ringing bound (Python overheads);
   ``call`` (1 per prefilter) and ``conv = (F + 1)^2``: order selection (power spectra) and the convolution
   ``B_lm = Lambda_l rho_l L_lm`` (App. C step 2, ``O(F_B^2)`` for radial lobes).
@@ -85,33 +90,33 @@ STAGES: dict[str, tuple[str, ...]] = {
 }
 FEATURES: tuple[str, ...] = tuple(f for feats in STAGES.values() for f in feats)
 
-#: Constants measured on the 2-core development machine (``relight tradeoff --recalibrate`` prints fresh ones).
+#: Constants calibrated on the 2-core development machine (``relight costmodel --recalibrate`` prints this machine's).
 #: Used only when no calibration is wanted (``load_calibration(run=False)`` without a cached file).
 DEFAULT_CONSTANTS: dict[str, float] = {
-    "lobe_call": 3.0e-04,
-    "lobe1d": 2.5e-07,
-    "brdf_evals": 1.3,
-    "brdf_ops": 3.0e-08,
-    "proj_call": 3.0e-05,
-    "proj_px": 1.3e-09,
-    "proj_leg": 6.0e-10,
-    "comp_call": 5.0e-04,
-    "syn_call": 2.0e-05,
-    "syn_px": 1.0e-09,
-    "syn_leg": 1.3e-09,
-    "synq_px": 2.0e-09,
-    "synq_leg": 2.5e-09,
-    "ring_call": 1.0e-04,
-    "ring": 2.0e-07,
-    "call": 3.0e-04,
-    "conv": 2.0e-06,
-    "view_base": 1.0e-07,
-    "view_px": 1.5e-08,
-    "eq8_px": 1.0e-08,
-    "lookup_px": 2.0e-07,
-    "ang_pairs": 1.2e-08,
-    "angv_pairs": 2.0e-08,
-    "angv_evals": 1.2,
+    "lobe_call": 6.6e-04,
+    "lobe1d": 6.9e-09,
+    "brdf_evals": 0.86,
+    "brdf_ops": 7.2e-09,
+    "proj_call": 6.5e-05,
+    "proj_px": 5.6e-10,
+    "proj_leg": 1.6e-10,
+    "comp_call": 0.0,
+    "syn_call": 2.3e-05,
+    "syn_px": 6.8e-10,
+    "syn_leg": 2.1e-10,
+    "synq_px": 2.3e-09,
+    "synq_leg": 5.6e-10,
+    "ring_call": 1.9e-04,
+    "ring": 9.7e-09,
+    "call": 8.5e-07,
+    "conv": 4.5e-10,
+    "view_base": 0.0,
+    "view_px": 4.7e-08,
+    "eq8_px": 2.4e-08,
+    "lookup_px": 1.2e-07,
+    "ang_pairs": 8.0e-09,
+    "angv_pairs": 1.7e-08,
+    "angv_evals": 0.55,
 }
 
 #: Channels of every environment map (RGB).
@@ -244,6 +249,40 @@ def radial_probes(lobe: Lobe, f_rho: int, *, explicit: bool) -> list[int]:
         probe *= 2
         probes.append(probe)
     return probes
+
+
+def integrand_eval_seconds(lobe: Lobe, *, repeat: int = 5) -> float:
+    """Seconds per lobe evaluation the way ``relight.reference_view`` evaluates it: ``u(C . w)`` for a radial lobe,
+    ``f(w, V, N)`` for a general isotropic BRDF, ``rho_hat`` otherwise (best of ``repeat`` on 4096 samples)."""
+    from relight.brdf.base import IsotropicBRDF, RadialLobe
+
+    try:
+        key: str | None = json.dumps(["integrand", type(lobe).__qualname__, lobe.spec()], sort_keys=True)
+    except (TypeError, ValueError):
+        key = None
+    if key is not None and key in _eval_cache:
+        return _eval_cache[key]
+    if not isinstance(lobe, RadialLobe | IsotropicBRDF):
+        return lobe_eval_seconds(lobe, repeat=repeat)
+    n = 4096
+    r = np.random.default_rng(0)
+    w = r.standard_normal((n, 3))
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    v = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (n, 3))
+    nrm = np.broadcast_to(np.array([0.0, 0.6, 0.8]), (n, 3))
+    best = math.inf
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        if isinstance(lobe, RadialLobe):
+            lobe.u(w[:, 2])
+        else:
+            lobe.f(w, v, nrm)
+        best = min(best, time.perf_counter() - t0)
+    per = best / n
+    if key is not None:
+        with _eval_lock:
+            _eval_cache[key] = per
+    return per
 
 
 def _eval_cache_put(lobe: Lobe, seconds: float) -> None:
@@ -400,7 +439,7 @@ def angular_view_features(
     from relight.shrm import brdf_lobes
 
     pairs, evals, _ = angular_view_counts(brdf, view, height, size, truncation)
-    cost = sum(n * lobe_eval_seconds(lobe) for n, lobe in zip(evals, brdf_lobes(brdf), strict=True))
+    cost = sum(n * integrand_eval_seconds(lobe) for n, lobe in zip(evals, brdf_lobes(brdf), strict=True))
     return {"angv_pairs": float(pairs), "angv_evals": cost}
 
 
@@ -700,6 +739,7 @@ def calibrate(*, repeat: int = 3, quick: bool = False, seed: int = 0) -> Calibra
 
     micro = Microfacet(0.3)
     per_eval = lobe_eval_seconds(micro)
+    per_integrand = integrand_eval_seconds(micro)
     materials: dict[str, Any] = {"m": micro, "lm": SumBRDF([Lambert(0.5), micro])}
     view = np.array([0.3, 0.5, 0.8])
     for h, mat, f, p, eps, s in CAL_SHRM[:4] if quick else CAL_SHRM:
@@ -728,7 +768,7 @@ def calibrate(*, repeat: int = 3, quick: bool = False, seed: int = 0) -> Calibra
         reference_view(px, micro, view, s, truncation=tr)  # fills the truncation-table cache (not timed)
         t, _ = _best(functools.partial(reference_view, px, micro, view, s, truncation=tr), max(1, repeat - 1))
         pairs, evals, _ = angular_view_counts(micro, view, h, s, tr)
-        record("reference_view", {"angv_pairs": float(pairs), "angv_evals": evals[0] * per_eval},
+        record("reference_view", {"angv_pairs": float(pairs), "angv_evals": evals[0] * per_integrand},
                {"angular_view": t})
 
     constants: dict[str, float] = {}

@@ -15,7 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.brdf.base import RadialLobe
-from relight.conventions import check_latlong_shape, latlong_dirs, pixel_solid_angles, ring_thetas
+from relight.conventions import latlong_dirs, pixel_solid_angles, require_rgb_latlong, ring_thetas
+from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
@@ -53,10 +54,10 @@ def reference_radial(
     chunk_elems: int = 4_000_000,
 ) -> FloatArray:
     """Brute-force ``B(C)`` on an S x 2S lat-long grid of centres C (same layout as the input), (S, 2S, C)."""
-    env = np.asarray(pixels, dtype=np.float64)
-    h, w = check_latlong_shape(env.shape)
+    env = np.asarray(require_rgb_latlong(pixels), dtype=np.float64)
+    h, w = env.shape[:2]
     if size < 1:
-        raise ValueError(f"size must be >= 1, got {size}")
+        raise InputError(f"size must be >= 1, got {size}")
     theta_star = truncation_angle(lobe, epsilon)
     cos_star = np.cos(theta_star)
     env_dirs = latlong_dirs(h, w)  # (H, W, 3)

@@ -67,11 +67,11 @@ from relight.brdf import lpq
 from relight.brdf.base import Lobe
 from relight.brdf.coefficients import lambda_l
 from relight.conventions import (
-    check_latlong_shape,
     column_phis,
     dirs_to_pixel,
     latlong_dirs,
     phi0,
+    require_rgb_latlong,
     ring_thetas,
 )
 from relight.errors import InputError
@@ -739,12 +739,8 @@ def create_shrm(
         raise InputError(f"order P must be >= 0, got {p_order}")
     if size is not None and size < 2:
         raise InputError(f"size must be >= 2, got {size}")
-    try:
-        h, w = check_latlong_shape(np.shape(pixels))
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-    if np.ndim(pixels) != 3 or np.shape(pixels)[2] != 3:
-        raise InputError(f"the environment map must be (H, W, 3), got shape {np.shape(pixels)}")
+    pixels = require_rgb_latlong(pixels)
+    h, w = pixels.shape[:2]
     lobes = brdf_lobes(brdf)
     f_cap = h - 1
     timer = Timer()
@@ -758,9 +754,10 @@ def create_shrm(
                 p = p_order
             else:  # F alone: P from the default tolerance (App. C order selection)
                 p = lpq.cached_select_orders(lobe, DEFAULT_EPSILON)[0].P
-            coeffs, cached = lpq.cached_coefficients(lobe, order, p)
-            sel: dict[str, Any] = {"F_rho": order, "P_rho": p, "explicit": True, "cached": cached}
-            chosen.append((lobe, coeffs, order, p, sel))
+            f_req = min(order, f_cap)  # orders above the map's resolution are never used (F_B <= H - 1)
+            coeffs, cached = lpq.cached_coefficients(lobe, f_req, p)
+            sel: dict[str, Any] = {"F_rho": f_req, "P_rho": p, "explicit": True, "cached": cached}
+            chosen.append((lobe, coeffs, f_req, p, sel))
         else:
             assert epsilon is not None
             res, cached = lpq.cached_select_orders(lobe, epsilon)

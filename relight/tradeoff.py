@@ -51,8 +51,9 @@ from relight.metrics import relative_rms
 FloatArray = NDArray[np.float64]
 Progress = Callable[[str, float], None]
 
-#: Tolerances of the frequency method (the paper's epsilon, §5.1) swept by default: to 1e-4 for reflection maps;
-#: SHRMs stop at 1e-3 (below it a microfacet lobe needs P > 16 and minutes of BRDF tabulation, App. C).
+#: Tolerances of the frequency method (the paper's epsilon, §5.1) swept by default: to 1e-4 when every lobe is
+#: radially symmetric; materials with a general lobe stop at 1e-3 (below it a microfacet lobe needs P > 16 and
+#: minutes of BRDF tabulation, App. C).
 DEFAULT_EPSILONS: tuple[float, ...] = (0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3, 3e-4, 1e-4)
 DEFAULT_SHRM_EPSILONS: tuple[float, ...] = (0.3, 0.1, 0.03, 0.01, 3e-3, 1e-3)
 #: Lobe truncations of the angular method (App. D) swept by default; §7.4 used 0.05.
@@ -190,7 +191,8 @@ def _frequency_shrm(
         "orders": {
             "F_B": max(p.f_b for p in plans), "P_B": max(p.p_b for p in plans), "F_proj": f_proj,
             "components": [{"kind": c["lobe"].get("kind"), "center": c["center"], "structure": c["structure"],
-                            "F_rho": p.f_rho, "F_B": p.f_b, "P_B": p.p_b, "maps": c["n_maps"]}
+                            "F_rho": p.f_rho, "F_B": p.f_b, "P_B": p.p_b, "maps": c["n_maps"],
+                            "probes": [list(q) for q in p.probes] if p.probes else None}
                            for c, p in zip(comps, plans, strict=True)],
         },
         "predicted_error": _finite_or_none(worst.get("rms_min_of_errors")),
@@ -241,6 +243,25 @@ def _angular(
     }
 
 
+def _warm_up(brdf: Any, view: FloatArray | None) -> None:
+    """Run every code path once on a tiny map, untimed: imports and one-time caches belong to no point."""
+    tiny = np.ones((8, 16, 3))
+    if view is None:
+        from relight.prefilter import prefilter_radial
+        from relight.reference import reference_radial
+
+        prefilter_radial(tiny, brdf, order=4, size=4)
+        reference_radial(tiny, brdf, 2, epsilon=0.1)
+    else:
+        from relight.brdf import lpq
+        from relight.reference_view import reference_view
+        from relight.shrm import create_shrm, reflect
+
+        reflect(create_shrm(tiny, brdf, order=4, p_order=2, size=4), view)
+        reference_view(tiny, brdf, view, 2, truncation=0.1)
+        lpq.clear_cache()
+
+
 def sweep(
     pixels: NDArray[np.floating],
     brdf: Any,
@@ -254,14 +275,18 @@ def sweep(
 ) -> Tradeoff:
     """Run both methods over their accuracy settings on one ``S x 2S`` grid (module docstring).
 
-    ``epsilons`` default to :data:`DEFAULT_EPSILONS` (reflection maps) or :data:`DEFAULT_SHRM_EPSILONS` (SHRMs).
+    ``epsilons`` default to :data:`DEFAULT_EPSILONS` (only radially symmetric lobes) or
+    :data:`DEFAULT_SHRM_EPSILONS`.
     ``view`` is used only for view-dependent materials. ``calibration`` defaults to
     :func:`relight.costmodel.load_calibration` (calibrating on first use).
     """
     px = _check_pixels(pixels)
     h = px.shape[0]
     if epsilons is None:
-        epsilons = DEFAULT_EPSILONS if is_reflection_map(brdf) else DEFAULT_SHRM_EPSILONS
+        from relight.shrm import brdf_lobes
+
+        cheap = all(lobe.radially_symmetric for lobe in brdf_lobes(brdf))
+        epsilons = DEFAULT_EPSILONS if cheap else DEFAULT_SHRM_EPSILONS
     if not epsilons and not truncations:
         raise InputError("a sweep needs at least one epsilon or one truncation")
     for e in epsilons:
@@ -283,6 +308,7 @@ def sweep(
         v = unit_view(view)
     cal = calibration if calibration is not None else costmodel.load_calibration()
     report = progress or (lambda stage, fraction: None)
+    _warm_up(brdf, v)
     n_total = len(epsilons) + len(truncations) + 1
 
     report("reference", 0.0)
@@ -448,7 +474,7 @@ def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> 
     ax.set_yscale("log")
     ax.set_xlabel("measured seconds")
     ax.set_ylabel("measured relative RMS error")
-    ax.set_title(f"{name}: accuracy against time")
+    ax.set_title(f"{name}\naccuracy against time", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -487,7 +513,7 @@ def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> 
         ax.set_yscale("log")
         ax.set_xlabel(f"predicted {label}")
         ax.set_ylabel(f"measured {label}")
-        ax.set_title(f"{name}: predicted against measured {label.split()[-1]}")
+        ax.set_title(f"{name}\npredicted against measured {label.split()[-1]}", fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
         fig.tight_layout()

@@ -114,7 +114,12 @@ class Renderer:
         if coeffs.shape != expect:
             raise InputError(f"coefficients have shape {coeffs.shape}, expected {expect}")
         def array_texture(layers: NDArray[np.floating], lay: layout_mod.Layout) -> Any:
-            data = np.ascontiguousarray(layers, dtype="<f2" if dtype == "f2" else "<f4")
+            if dtype == "f2":  # clamp to the half-float range (65504) instead of overflowing to inf
+                from relight.envmap import to_half_safe
+
+                data = np.ascontiguousarray(to_half_safe(np.asarray(layers))[0], dtype="<f2")
+            else:
+                data = np.ascontiguousarray(layers, dtype="<f4")
             tex = self.ctx.texture_array((lay.width, lay.height, lay.num_layers), 3, data.tobytes(), dtype=dtype)
             tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
             tex.repeat_x = True

@@ -20,7 +20,7 @@ from client.models import JobState, SceneCreate, ScenePublic
 from relight.errors import InputError
 from server.problems import Conflict, NotFound, Unprocessable
 from server.services.base import aware, in_thread, utc
-from server.services.tradeoffs import Analysis, AnalysisService, _service
+from server.services.tradeoffs import Analysis, AnalysisService, service_for
 from worker.blobs import BlobCorrupt, BlobMissing
 from worker.specs import to_core
 
@@ -90,5 +90,5 @@ class SceneService(AnalysisService):
 
 
 async def scene_service(request: Request) -> SceneService:
-    svc: SceneService = _service(request, "scene_service", SceneService)
+    svc: SceneService = service_for(request, "scene_service", SceneService)
     return svc

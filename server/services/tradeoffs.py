@@ -162,7 +162,7 @@ class AnalysisService:
                 del self._watchers[job_id]
 
 
-def _service(request: Request, attr: str, cls: type[AnalysisService]) -> Any:
+def service_for(request: Request, attr: str, cls: type[AnalysisService]) -> Any:
     """The app's instance of ``cls``, created on first use from the app's services (one per process)."""
     svc = getattr(request.app.state, attr, None)
     if svc is None:
@@ -218,7 +218,7 @@ class TradeoffService(AnalysisService):
 
 
 async def tradeoff_service(request: Request) -> TradeoffService:
-    svc: TradeoffService = _service(request, "tradeoff_service", TradeoffService)
+    svc: TradeoffService = service_for(request, "tradeoff_service", TradeoffService)
     return svc
 
 
