@@ -27,7 +27,10 @@ from client.models import (
     JobPublic,
     JobState,
     PlanPublic,
+    SceneCreate,
+    ScenePublic,
     ShrmManifest,
+    TradeoffPublic,
 )
 
 T = TypeVar("T")
@@ -143,6 +146,22 @@ class _Calls:
         v = view if isinstance(view, str) else ",".join(f"{c:.17g}" for c in view)
         return _Call("GET", f"/shrms/{shrm_id}/reflection.exr", _bytes, {"params": {"view": v}})
 
+    @staticmethod
+    def create_tradeoff(body: dict[str, Any]) -> _Call[TradeoffPublic]:
+        return _Call("POST", "/tradeoffs", _model(TradeoffPublic), {"json": body})
+
+    @staticmethod
+    def get_tradeoff(tradeoff_id: str) -> _Call[TradeoffPublic]:
+        return _Call("GET", f"/tradeoffs/{tradeoff_id}", _model(TradeoffPublic))
+
+    @staticmethod
+    def create_scene(body: dict[str, Any]) -> _Call[ScenePublic]:
+        return _Call("POST", "/scenes", _model(ScenePublic), {"json": body})
+
+    @staticmethod
+    def get_scene(scene_id: str) -> _Call[ScenePublic]:
+        return _Call("GET", f"/scenes/{scene_id}", _model(ScenePublic))
+
 
 class _SSE:
     """Incremental parser of ``text/event-stream`` lines into (event, data) pairs."""
@@ -168,6 +187,30 @@ class _SSE:
         elif name == "data":
             self.data.append(value)
         return None
+
+
+def _tradeoff_body(envmap: str, brdf: Spec, rows: int | None, size: int | None, epsilons: list[float] | None,
+                   truncations: list[float] | None, view: tuple[float, float, float] | None) -> dict[str, Any]:
+    ref: Any = brdf.model_dump(mode="json", exclude_none=True) if isinstance(brdf, BaseModel) else brdf
+    body: dict[str, Any] = {"envmap": envmap, "brdf": ref}
+    for k, v in (("rows", rows), ("size", size), ("epsilons", epsilons), ("truncations", truncations),
+                 ("view", list(view) if view is not None else None)):
+        if v is not None:
+            body[k] = v
+    return body
+
+
+def _scene_body(scene: dict[str, Any] | BaseModel) -> dict[str, Any]:
+    if isinstance(scene, BaseModel):
+        return scene.model_dump(mode="json", exclude_none=True)
+    return SceneCreate.model_validate(scene).model_dump(mode="json", exclude_none=True)
+
+
+def _check_analysis(pub: Any) -> Any:
+    """A finished tradeoff or scene: itself, or :class:`JobFailed` when it failed or was cancelled."""
+    if pub.state in (JobState.failed, JobState.cancelled):
+        raise JobFailed(pub)
+    return pub
 
 
 def _headers(api_key: str | None) -> dict[str, str]:
@@ -313,6 +356,34 @@ class RelightClient:
     def reflection(self, shrm_id: str, view: tuple[float, float, float] | str) -> bytes:
         return self._do(_Calls.reflection(shrm_id, view))
 
+    def create_tradeoff(self, envmap: str, brdf: Spec, *, rows: int | None = None, size: int | None = None,
+                        epsilons: list[float] | None = None, truncations: list[float] | None = None,
+                        view: tuple[float, float, float] | None = None) -> TradeoffPublic:
+        """``POST /tradeoffs``: start (or join) an accuracy–time sweep; finished already when it existed."""
+        return self._do(_Calls.create_tradeoff(_tradeoff_body(envmap, brdf, rows, size, epsilons, truncations, view)))
+
+    def get_tradeoff(self, tradeoff_id: str) -> TradeoffPublic:
+        return self._do(_Calls.get_tradeoff(tradeoff_id))
+
+    def wait_tradeoff(self, tradeoff_id: str, *, timeout: float | None = None,
+                      poll_interval: float = 0.5) -> TradeoffPublic:
+        """Poll until the sweep ends; raise :class:`JobFailed` if it failed or was cancelled."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            pub = self.get_tradeoff(tradeoff_id)
+            if pub.state.terminal:
+                return _check_analysis(pub)
+            if deadline is not None and time.monotonic() > deadline:
+                raise TransportError(f"tradeoff {tradeoff_id} still {pub.state} after {timeout} s")
+            time.sleep(poll_interval)
+
+    def create_scene(self, scene: dict[str, Any] | SceneCreate) -> ScenePublic:
+        """``POST /scenes``: store the scene and run its plan (validated locally as ``SceneCreate`` first)."""
+        return self._do(_Calls.create_scene(_scene_body(scene)))
+
+    def get_scene(self, scene_id: str) -> ScenePublic:
+        return self._do(_Calls.get_scene(scene_id))
+
 
 class AsyncRelightClient:
     """Asynchronous client with the same operations as :class:`RelightClient`."""
@@ -443,3 +514,31 @@ class AsyncRelightClient:
 
     async def reflection(self, shrm_id: str, view: tuple[float, float, float] | str) -> bytes:
         return await self._do(_Calls.reflection(shrm_id, view))
+
+    async def create_tradeoff(self, envmap: str, brdf: Spec, *, rows: int | None = None, size: int | None = None,
+                              epsilons: list[float] | None = None, truncations: list[float] | None = None,
+                              view: tuple[float, float, float] | None = None) -> TradeoffPublic:
+        return await self._do(_Calls.create_tradeoff(
+            _tradeoff_body(envmap, brdf, rows, size, epsilons, truncations, view)))
+
+    async def get_tradeoff(self, tradeoff_id: str) -> TradeoffPublic:
+        return await self._do(_Calls.get_tradeoff(tradeoff_id))
+
+    async def wait_tradeoff(self, tradeoff_id: str, *, timeout: float | None = None,
+                            poll_interval: float = 0.5) -> TradeoffPublic:
+        import anyio
+
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            pub = await self.get_tradeoff(tradeoff_id)
+            if pub.state.terminal:
+                return _check_analysis(pub)
+            if deadline is not None and time.monotonic() > deadline:
+                raise TransportError(f"tradeoff {tradeoff_id} still {pub.state} after {timeout} s")
+            await anyio.sleep(poll_interval)
+
+    async def create_scene(self, scene: dict[str, Any] | SceneCreate) -> ScenePublic:
+        return await self._do(_Calls.create_scene(_scene_body(scene)))
+
+    async def get_scene(self, scene_id: str) -> ScenePublic:
+        return await self._do(_Calls.get_scene(scene_id))

@@ -106,6 +106,28 @@ export class Api {
     return this.request('GET', '/openapi.json');
   }
 
+  /** POST /tradeoffs: {tradeoff, done} (200 = the sweep had finished already, 202 = it runs). */
+  async tradeoff(body) {
+    const resp = await this.request('POST', '/tradeoffs', { json: body, as: 'response' });
+    return { tradeoff: await resp.json(), done: resp.status === 200 };
+  }
+
+  getTradeoff(id) {
+    return this.request('GET', `/tradeoffs/${id}`);
+  }
+
+  scene(body) {
+    return this.request('POST', '/scenes', { json: body });
+  }
+
+  getScene(id) {
+    return this.request('GET', `/scenes/${id}`);
+  }
+
+  sceneFile(id, name) {
+    return this.request('GET', `/scenes/${id}/files/${encodeURIComponent(name)}`, { as: 'arrayBuffer' });
+  }
+
   /** Calls onJob(job) for every `job` event until `end`; resolves with the last job. */
   async events(id, onJob, signal) {
     const resp = await this.request('GET', `/jobs/${id}/events`, { as: 'response', signal,

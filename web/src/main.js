@@ -4,6 +4,8 @@ import { Api, ApiError } from './api.js';
 import { compare } from './compare.js';
 import { modelsFromOpenapi, specFor } from './materials.js';
 import { loadFile, loadSample } from './objects.js';
+import { exampleScene, parseScene, showScene } from './scene.js';
+import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
 
 const $ = (id) => document.getElementById(id);
@@ -20,6 +22,9 @@ const state = {
   ready: false,
   lastComparison: null,
   progressLog: [], // [state, progress] of every job update shown (tests)
+  tradeoff: null, // the last GET /tradeoffs/{id} answer
+  tradeoffKey: null, // JSON of the material and map it was run for
+  scene: null, // the last GET /scenes/{id} answer
 };
 window.relight = state;
 
@@ -184,6 +189,7 @@ async function updatePlan() {
     state.plan = plan;
     showPlan(plan);
     showError('plan-error', null);
+    drawTradeoff();
   } catch (err) {
     if (seq === state.planSeq) {
       state.plan = null;
@@ -236,6 +242,88 @@ async function loadResult(id) {
   $('overlay').textContent = `${manifest.representation}: ${manifest.height} × ${manifest.width}, ${layers} `
     + `layer${layers > 1 ? 's' : ''}`;
   state.loaded = (state.loaded || 0) + 1;
+}
+
+// ------------------------------------------------------------------------------------------------ tradeoff
+const TERMINAL = ['succeeded', 'failed', 'cancelled'];
+const sleep = (ms) => new Promise((resolve) => { setTimeout(resolve, ms); });
+
+function tradeoffKey() {
+  return JSON.stringify([state.envmapId, currentBrdf()]);
+}
+
+function drawTradeoff() {
+  const t = state.tradeoff;
+  if (!t || t.state !== 'succeeded') {
+    return;
+  }
+  const stale = state.tradeoffKey !== tradeoffKey();
+  // the marker is the current plan's prediction; it only belongs on the chart of the same material and map
+  const model = chartModel(t.points || [], stale ? null : state.plan, { width: 276, height: 200 });
+  $('tradeoff-chart').innerHTML = renderSvg(model);
+  const n = (m) => (t.points || []).filter((p) => p.method === m).length;
+  $('tradeoff-status').textContent = `${n('frequency')} frequency, ${n('angular')} angular points on a `
+    + `${t.params?.rows ?? '?'}-row map; ◆ = current choice (predicted)`
+    + (stale ? ' — chart is for a previous material or map: run again' : '');
+}
+
+async function runTradeoff() {
+  showError('tradeoff-error', null);
+  if (!state.envmapId) {
+    showError('tradeoff-error', 'choose or upload an environment map first');
+    return;
+  }
+  $('tradeoff-run').disabled = true;
+  const key = tradeoffKey();
+  try {
+    const { tradeoff } = await state.api.tradeoff({ envmap: state.envmapId, brdf: currentBrdf(), rows: 16 });
+    let t = tradeoff;
+    const started = performance.now();
+    while (!TERMINAL.includes(t.state)) {
+      $('tradeoff-status').textContent = `${t.state} — ${((performance.now() - started) / 1000).toFixed(0)} s`;
+      await sleep(500);
+      t = await state.api.getTradeoff(t.id);
+    }
+    if (t.state !== 'succeeded') {
+      throw new Error(`the sweep ${t.state}${t.failure_reason ? `: ${t.failure_reason}` : ''}`);
+    }
+    state.tradeoff = t;
+    state.tradeoffKey = key;
+    drawTradeoff();
+  } catch (err) {
+    $('tradeoff-status').textContent = '';
+    showError('tradeoff-error', err);
+  } finally {
+    $('tradeoff-run').disabled = false;
+  }
+}
+
+// ------------------------------------------------------------------------------------------------ scene
+async function runScene() {
+  showError('scene-error', null);
+  $('scene-run').disabled = true;
+  try {
+    const body = parseScene($('scene-json').value, state.envmapId);
+    let pub = await state.api.scene(body);
+    state.scene = pub;
+    await showScene($('scene-plan'), pub, state.api);
+    while (!TERMINAL.includes(pub.state)) {
+      await sleep(500);
+      pub = await state.api.getScene(pub.id);
+      state.scene = pub;
+      if (pub.plan || TERMINAL.includes(pub.state)) {
+        await showScene($('scene-plan'), pub, state.api);
+      }
+    }
+    await showScene($('scene-plan'), pub, state.api);
+    if (pub.state !== 'succeeded') {
+      showError('scene-error', `the scene ${pub.state}${pub.failure_reason ? `: ${pub.failure_reason}` : ''}`);
+    }
+  } catch (err) {
+    showError('scene-error', err);
+  } finally {
+    $('scene-run').disabled = false;
+  }
 }
 
 // ------------------------------------------------------------------------------------------------ environment
@@ -424,6 +512,16 @@ async function main() {
     $(id).addEventListener('change', displayOptions);
   }
   displayOptions();
+  $('tradeoff-run').addEventListener('click', runTradeoff);
+  $('scene-run').addEventListener('click', runScene);
+  $('scene-example').addEventListener('click', () => {
+    $('scene-json').value = JSON.stringify(exampleScene(state.envmapId, currentBrdf()), null, 1);
+  });
+  $('scene-file').addEventListener('change', async (e) => {
+    if (e.target.files[0]) {
+      $('scene-json').value = await e.target.files[0].text();
+    }
+  });
   $('compare').addEventListener('click', runCompare);
   $('compare-close').addEventListener('click', () => {
     $('comparison').hidden = true;
