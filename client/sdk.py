@@ -206,8 +206,8 @@ def _scene_body(scene: dict[str, Any] | BaseModel) -> dict[str, Any]:
     return SceneCreate.model_validate(scene).model_dump(mode="json", exclude_none=True)
 
 
-def _check_analysis(pub: Any) -> Any:
-    """A finished tradeoff or scene: itself, or :class:`JobFailed` when it failed or was cancelled."""
+def _check_analysis(pub: TradeoffPublic) -> TradeoffPublic:
+    """A finished tradeoff: itself, or :class:`JobFailed` when it failed or was cancelled."""
     if pub.state in (JobState.failed, JobState.cancelled):
         raise JobFailed(pub)
     return pub
