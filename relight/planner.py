@@ -52,6 +52,7 @@ from numpy.typing import NDArray
 from relight import __version__, costmodel
 from relight.brdf.base import Lobe, RadialLobe
 from relight.errors import InputError
+from relight.jsonable import jsonable as _jsonable
 
 FloatArray = NDArray[np.float64]
 
@@ -504,18 +505,11 @@ def _plan_at(
 
 
 def _pixels(pixels: NDArray[np.floating]) -> FloatArray:
-    from relight.conventions import check_latlong_shape
+    """The environment map as float64 (H, W, 3), validated by ``require_rgb_latlong``."""
+    from relight.conventions import require_rgb_latlong
 
-    px = np.asarray(pixels, dtype=np.float64)
-    if px.ndim != 3 or px.shape[2] != 3:
-        raise InputError(f"the environment map must be (H, W, 3), got shape {px.shape}")
-    try:
-        check_latlong_shape(px.shape)
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-    if not np.all(np.isfinite(px)):
-        raise InputError("the environment map has non-finite texels (NaN or Inf)")
-    return px
+    return np.asarray(require_rgb_latlong(pixels), dtype=np.float64)
+
 
 
 def plan_scene(
@@ -722,16 +716,6 @@ def run_plan(
     return result
 
 
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def plan_json(plan: Plan) -> str:

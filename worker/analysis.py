@@ -10,13 +10,13 @@ calibration. Plain functions: plain data in, plain data out; they never import F
 
 from __future__ import annotations
 
-import math
 import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from relight.jsonable import jsonable as _jsonable
 from worker.blobs import BlobStore
 from worker.specs import from_core, to_core
 
@@ -26,16 +26,6 @@ TRADEOFF_ROWS = 64
 MEDIA_TYPES = {".exr": "image/x-exr", ".json": "application/json", ".png": "image/png"}
 
 
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def _pixels(store: BlobStore, digest: str, max_pixels: int | None, rows: int | None) -> np.ndarray:

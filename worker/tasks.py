@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight.jsonable import jsonable as _jsonable
 from worker.blobs import BlobStore
 from worker.progress import Reporter
 from worker.results import Layer, existing_result, load_manifest, strip_volatile, write_result
@@ -194,17 +195,6 @@ def compute_shrm(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
             "timings": _jsonable(core_report.get("timings"))}
 
 
-def _jsonable(obj: Any) -> Any:
-    """Plain JSON types (NumPy scalars to Python, non-finite floats to None)."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 # ----------------------------------------------------------------------------------------------------------------
