@@ -183,7 +183,7 @@ def render_sphere_mitsuba(bitmap: NDArray[np.float32], alpha: float, size: int, 
 
     t0 = time.perf_counter()
     scene = mi.load_dict(sphere_scene(bitmap, alpha, size, spp))
-    img = np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float64)
+    img = np.array(mi.render(scene, spp=spp, seed=mi.UInt32(seed)), dtype=np.float64)
     seconds = time.perf_counter() - t0
     # channels: R, G, B, then the moment integrator's nested.{X,Y,Z} and m2_nested.{X,Y,Z}
     if img.shape != (size, size, 9):
