@@ -10,13 +10,13 @@ Both renderers see the same radiance: the downsampled map, read as piecewise con
 (``mitsuba_scene.mitsuba_bitmap``, 8 texels per pixel edge) and to relight split 4 x 4 (the same function on a finer
 pixel grid, so relight's pixel-centre quadrature integrates it more accurately). The conversion is checked directly
 (the emitter's radiance equals relight's pixel values; the BSDF equals relight's model) and on an image (a small
-light's highlight lands where relight puts it, and a mirrored or flipped map moves it away).
+light's highlight lands where relight puts it; a mirrored, flipped or quarter-turned map moves it away).
 
 Comparison on 8 x 8 blocks of Rec. 709 luminance, over the 24 blocks whose whole area lies within image radius
 ``R_MAX`` = 0.8 (angle between N and V at most 53 degrees, so theta_o = angle(R, V) <= 106 degrees). Outside it the
 outermost blocks straddle the silhouette (a pixel footprint partly off the sphere), and toward grazing the
 reparameterised lobe narrows like cos(theta_v) and needs unbounded orders (seed 000 §3.1, App. C): relight's
-report, whose predicted error covers all view angles up to grazing (``rms_brdf`` 0.18–0.35 at these orders), is
+report, whose predicted error covers all view angles up to grazing (``rms_brdf`` 0.14–0.35 at these orders), is
 dominated by that band. Per block, ``|relight - Mitsuba| <= K sigma + |trunc| + texel + foot + sampling``:
 
 * ``sigma``: the Monte Carlo standard deviation of Mitsuba's block mean, estimated from the render itself (the
@@ -25,18 +25,21 @@ dominated by that band. Per block, ``|relight - Mitsuba| <= K sigma + |trunc| + 
 * ``trunc``: relight's own error at orders (F, P) — truncation plus output-map interpolation — measured per block
   against relight's brute-force angular reference (``reflected_radiance``: eq. 1 summed over the map's pixels, no
   SH) at the same sample points on the same (unsplit) map, with its sign. The report's predicted error is the
-  whole light field's (see above); the test checks that every block's measured error stays below it.
-* ``texel``: Mitsuba integrates the piecewise-constant map (with bilinear seams, box filters of width h/8 across
-  columns and h/4 across rows), relight samples the split map at pixel centres (midpoint rule, pixel h/4). Both are
-  second order in h: ``(w^2 / 24) rho''`` per axis for a seam of width w, ``-(h^2 / 24) rho''`` for the midpoint
-  rule. From relight on the unsplit map, ``S(h) - S(h/4) = -(15/16) (h^2/24) rho''``; the residual
-  ``(1/16 + 1/16 + 1/64) (h^2/24) |rho''|`` is below 1/6 of it: ``texel = |S(h) - S(h/4)| / 4``.
+  whole light field's (see above): the test only checks that no block's measured error exceeds it.
+* ``texel``: Mitsuba integrates the piecewise-constant map with bilinear seams (box filters of the pixel edges,
+  width h/8 across columns and h/4 across rows, h the pixel), relight samples the split map at pixel centres
+  (midpoint rule, pixel h/4). Both are second order: a box seam of width w adds ``(w^2/24) rho''`` per axis, the
+  midpoint rule ``-(h^2/24) rho''``. relight on the unsplit map measures the scale:
+  ``S(h) - S(h/4) = -(15/16)(a + b)`` with ``a, b = (h^2/24) rho''`` along theta and phi, while the residual
+  ``S(h/4) - Mitsuba = -(a/8 + 5 b/64)`` is at most 0.134 of it when the two curvatures have the same sign;
+  ``texel = |S(h) - S(h/4)| / 4`` allows twice that.
 * ``foot``: Mitsuba averages each pixel's area, relight samples 8 x 8 points per pixel; the residual of that
   (converging as 1/ss^2) is ``|S_8 - S_4| / 3``.
 * ``sampling``: the reference is evaluated at fewer points than the SHRM image (it is the costly part), so
   ``trunc`` carries a sampling error: measured against 8 x 8 samples per pixel at most 0.6 % of a block for
-  alpha = 0.05 at 2 x 2 (highlights about a pixel wide), 0.05 % for alpha = 0.2 at 2 x 2 and 0.07 % for alpha = 0.5
-  at 1 x 1 (studio; see ``SETUPS``), allowed as a stated fraction of the block.
+  alpha = 0.05 at 2 x 2 (studio; sunset 0.02 %: the sharp highlights are about a pixel wide), 0.05 % for alpha = 0.2
+  at 2 x 2 and 0.07 % for alpha = 0.5 at 1 x 1 (studio); allowed as a stated, resolution-limited fraction of the
+  block: 1 %, 0.1 % and 0.1 % (``SETUPS``).
 
 A stricter check puts the measured ``trunc`` back with its sign — i.e. compares relight's brute-force reference,
 carried to the SHRM image's sampling and quadrature by the SHRM's own differences, with Mitsuba — within
@@ -113,8 +116,8 @@ class Setup:
 
 # alpha = 0.05: the lobe (about 2 alpha = 0.1 rad wide around R) needs F ~ 64; a 128-row map (0.025 rad pixels)
 # carries it and the 192-row SHRM samples it every 0.016 rad. alpha = 0.5 is smooth enough for a 32-row map.
-# Measured errors at these orders against the reference (per block, r <= 0.8): up to 4 % (0.05), 2.7 % (0.2) and
-# 1 % (0.5), largest on the dark blocks beside the lights, where the truncated lobe rings.
+# relight's measured errors at these orders against the reference (per block, r <= 0.8): up to 4.2 % (0.05), 3.1 %
+# (0.2) and 0.8 % (0.5) of the block, largest on the dark blocks beside the studio's lights (the truncated lobe rings).
 SETUPS = {
     0.05: Setup(rows=128, F=64, P=8, size=192, ss_ref=2, sampling=0.01),
     0.2: Setup(rows=64, F=32, P=12, size=128, ss_ref=2, sampling=0.001),
@@ -209,8 +212,9 @@ def _centroid(lum: FloatArray) -> FloatArray:
 
 def test_small_light_highlight_position(variant: str) -> None:
     """A map lit only in a small cap around an asymmetric direction L: Mitsuba's highlight lands where relight's
-    does, near the half-vector H = normalize(L + V) (image position (H_x, H_y)); with the map mirrored (u -> 1 - u)
-    or flipped upside down it does not."""
+    does, near the half-vector H = normalize(L + V) (image position (H_x, H_y)); with the map mirrored (u -> 1 - u),
+    flipped upside down or turned by a quarter (u = 0 taken as -X, relight's seam, instead of -Z) it does not.
+    (The block comparison below fails on every block for these, and already for a one-pixel turn or shift.)"""
     h, alpha, n = 64, 0.2, 48
     light = np.array([0.45, 0.35, 0.82])
     light /= np.linalg.norm(light)
@@ -220,11 +224,13 @@ def test_small_light_highlight_position(variant: str) -> None:
     bitmap = mitsuba_bitmap(p, UP_MITSUBA)
     theirs = _centroid(render_sphere_mitsuba(bitmap, alpha, n, 256).luminance)
     half = (light + VIEW) / np.linalg.norm(light + VIEW)
+    print(f"\nhighlight centroid: relight {ours}, Mitsuba {theirs}, half-vector {half[:2]}")
     assert np.linalg.norm(theirs - ours) < 0.02, (theirs, ours)
     assert np.linalg.norm(ours - half[:2]) < 0.05, (ours, half)
-    for wrong in (bitmap[:, ::-1], bitmap[::-1]):
+    for wrong in (bitmap[:, ::-1], bitmap[::-1], np.roll(bitmap, bitmap.shape[1] // 4, axis=1)):
         moved = _centroid(render_sphere_mitsuba(np.ascontiguousarray(wrong), alpha, n, 256).luminance)
-        assert np.linalg.norm(moved - ours) > 0.3, moved
+        print(f"wrong map: Mitsuba {moved}")
+        assert np.linalg.norm(moved - ours) > 0.2, moved
 
 
 # ------------------------------------------------------------------------------------------ the comparison

@@ -15,6 +15,7 @@ from __future__ import annotations
 import asyncio
 import functools
 import logging
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from datetime import datetime
 from typing import Any, Final
@@ -58,7 +59,7 @@ class Analysis(Base):
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
 
 
-class AnalysisService:
+class AnalysisService(ABC):
     """Submission, watching and lookup of one kind of analysis job (module docstring)."""
 
     kind: str = ""
@@ -74,8 +75,9 @@ class AnalysisService:
         self._watchers: dict[str, asyncio.Task[None]] = {}
         Base.metadata.create_all(db.engine, tables=[Analysis.__table__])  # type: ignore[list-item]
 
+    @abstractmethod
     def task(self) -> Callable[..., Any]:
-        raise NotImplementedError
+        """The worker function this kind of analysis runs (``worker.analysis``)."""
 
     def _row(self, job_id: str) -> Analysis | None:
         with self.db.session() as s:
