@@ -708,6 +708,10 @@ def predicted_errors(
     }
 
 
+#: Largest coefficient-map set create_shrm builds (float64, before any file is written).
+MAX_SHRM_BYTES = 4 * 2**30
+
+
 def create_shrm(
     pixels: NDArray[np.floating],
     brdf: Any,
@@ -780,6 +784,15 @@ def create_shrm(
         p_b = 0 if structure == "radial" else p_rho
         plans.append((lobe, coeffs, f_b, p_b, structure, reason, sel))
     s = size if size is not None else size_for_order(max(f for _, _, f, _, _, _, _ in plans))
+    # Refuse plans whose coefficient maps cannot fit in memory (a sharp lobe at a tight tolerance can ask for
+    # hundreds of S x 2S float64 maps): a clear error instead of an out-of-memory crash.
+    n_maps = sum(len(terms_for(structure, p_b)) for _, _, _, p_b, structure, _, _ in plans)
+    need = n_maps * s * 2 * s * 3 * 8
+    if need > MAX_SHRM_BYTES:
+        raise InputError(
+            f"this SHRM needs {n_maps} maps of {s} x {2 * s} ({need / 2**30:.1f} GiB, limit "
+            f"{MAX_SHRM_BYTES / 2**30:.0f} GiB): loosen epsilon, or give explicit orders and a smaller size"
+        )
 
     components = []
     for lobe, coeffs, f_b, p_b, structure, reason, sel in plans:

@@ -307,3 +307,12 @@ def test_report_and_errors() -> None:
     with pytest.raises(ValueError, match="backend"):
         shrm.synthesize_local(np.zeros((1, 1), complex), 0, np.zeros((1, 1, 1, 1)), [(0, 0)], 4, backend="x")  # type: ignore[arg-type]
     lpq.clear_cache()
+
+
+def test_oversized_plans_are_refused_before_allocating() -> None:
+    """A plan whose coefficient maps would not fit in memory is an InputError naming the size, not an OOM crash."""
+    from relight.errors import InputError
+
+    px = np.ones((16, 32, 3))
+    with pytest.raises(InputError, match=r"289 maps of 2048 x 4096"):
+        shrm.create_shrm(px, parse_brdf("microfacet:sigma=0.3"), order=15, p_order=16, size=2048)
