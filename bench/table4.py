@@ -52,11 +52,9 @@ def main() -> None:
     args = ap.parse_args()
 
     env = np.asarray(read_envmap(args.map).pixels, dtype=np.float64)
-    size = 64
+    size = 128  # the 128 x 256 output
     if args.quick:
         env, size = np.asarray(resample_latlong(env, 128), dtype=np.float64), 32
-    else:
-        size = 128
     h = env.shape[0]
 
     # SH-transform floor: projection to L = 30 plus synthesis at the output size (what any SH method must pay).
