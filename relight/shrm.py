@@ -543,23 +543,41 @@ def render_sphere(
     if size < 1:
         raise InputError(f"size must be >= 1, got {size}")
     n, mask = sphere_geometry(v, size)
-    nn = n[mask]
+    out = np.empty((size, size, 3))
+    out[...] = np.asarray(background, dtype=np.float64)
+    out[mask] = shade(shrm, n[mask], v, local=local)
+    return out
+
+
+def shade(
+    shrm: SHRM, normals: NDArray[np.floating], view: NDArray[np.floating], *, local: bool = False,
+    map_view: NDArray[np.floating] | None = None,
+) -> FloatArray:
+    """Radiance (n, 3) leaving surface points with unit normals N (n, 3) toward V (unit; (3,) or per point
+    (n, 3)), seed 000 §7.5: ``R = 2 (N.V) N - V`` and each component looked up bilinearly at its centre C.
+
+    ``local=False`` (distant viewer): one eq. 12 map for ``map_view`` (default: ``view``, which must then be a
+    single direction) sampled at C. ``local=True`` (near viewer): eq. 6 per point, the maps ``Br_pq`` sampled at C
+    and weighted by ``Yr_pq`` of the point's own V in C's local frame.
+    """
+    nn = np.asarray(normals, dtype=np.float64)
+    v = np.asarray(view, dtype=np.float64)
     r = reflect_dirs(nn, v)
+    mv = v if map_view is None else unit_view(map_view)
+    if not local and mv.shape != (3,):
+        raise InputError("a distant viewer needs one view direction for its eq. 12 map (map_view)")
     acc = np.zeros((nn.shape[0], 3))
     for comp in shrm.components:
         c = lobe_centres(comp.center, nn, r)
         if not local:
-            acc += sample_latlong(comp.view_map(v)[None], c)[:, 0]
+            acc += sample_latlong(comp.view_map(mv)[None], c)[:, 0]
             continue
         coeffs = sample_latlong(comp.maps, c)  # (n, K, 3)
         theta_o, phi_o = local_view_angles(c, v)
         y = real_harmonics(comp.P, theta_o, phi_o)
         cols = [real_index(p, q) for p, q in comp.terms]
         acc += np.einsum("nkc,nk->nc", coeffs, y[:, cols])
-    out = np.empty((size, size, 3))
-    out[...] = np.asarray(background, dtype=np.float64)
-    out[mask] = acc
-    return out
+    return acc
 
 
 def evaluate_local(comp: SHRMComponent, view: NDArray[np.floating] | Sequence[float]) -> FloatArray:

@@ -69,7 +69,7 @@ def run_scene(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
 
     ``job``: ``scene`` (the scene's JSON form with ``environment`` = the map's digest and service BRDF specs) and
     ``max_pixels``. The files of :func:`relight.planner.run_plan` go into the blob store; the result maps each file
-    name to its digest and media type.
+    name to its digest and media type; every object with an SHRM also gets its viewer texture (:func:`_add_texture`).
     """
     from relight.planner import plan_scene, run_plan, scene_from_dict
 
@@ -87,9 +87,45 @@ def run_scene(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
                 continue
             files[path.name] = {"sha256": store.put_file(path), "bytes": path.stat().st_size,
                                 "media_type": MEDIA_TYPES.get(path.suffix, "application/octet-stream")}
+        for entry in result["objects"]:
+            if entry["files"].get("shrm"):
+                _add_texture(store, Path(tmp) / entry["files"]["shrm"], entry, files)
     out: dict[str, Any] = _jsonable({"plan": from_core(plan.data, store), "result": from_core(result, store),
                                      "files": files})
     return out
+
+
+def _add_texture(store: BlobStore, shrm_path: Path, entry: dict[str, Any], files: dict[str, dict[str, Any]]) -> None:
+    """The viewer's form of one object's SHRM: ``{name}.coefficients.bin`` (float16 layers, exactly the
+    ``coefficients.bin`` of ``/shrms``) and ``{name}.texture.json`` (a result manifest for it, read by
+    ``web/src/layout.js``); both named in the object's ``files`` and in the scene's file list."""
+    from relight.shrm_io import manifest, read_shrm
+    from worker.results import (
+        BIN_NAME,
+        MANIFEST_FORMAT,
+        MANIFEST_VERSION,
+        canonical_json,
+        layer_entries,
+        put_texture,
+        strip_volatile,
+    )
+    from worker.shrm_adapter import shrm_layers
+
+    shrm = read_shrm(shrm_path)
+    layers = shrm_layers(shrm)
+    bin_name, json_name = f"{entry['name']}.coefficients.bin", f"{entry['name']}.texture.json"
+    texture = put_texture(store, layers)
+    files[bin_name] = {"sha256": texture["sha256"], "bytes": texture["bytes"],
+                       "media_type": "application/octet-stream"}
+    described = strip_volatile(manifest(shrm))
+    man = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION, "id": f"{entry['name']}",
+           "representation": "shrm", "layout": described["layout"], "height": shrm.height, "width": shrm.width,
+           "layers": layer_entries(layers), "components": described["components"],
+           "files": {BIN_NAME: {**texture, "name": bin_name}}, "object": entry["name"]}
+    data = canonical_json(_jsonable(man))
+    files[json_name] = {"sha256": store.put_bytes(data), "bytes": len(data), "media_type": "application/json"}
+    entry["files"]["coefficients_bin"] = bin_name
+    entry["files"]["texture"] = json_name
 
 
 def calibrate_costmodel() -> dict[str, Any]:

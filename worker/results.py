@@ -78,6 +78,37 @@ def half_layers(layers: list[Layer]) -> tuple[bytes, int]:
     return np.ascontiguousarray(half).astype("<f2", copy=False).tobytes(), clamped
 
 
+def layer_entries(layers: list[Layer]) -> list[dict[str, Any]]:
+    """The manifest's ``layers`` list: index, EXR layer name, component and (p, q) of every texture layer."""
+    return [{"index": i, "name": layer.name, "component": layer.component, "p": layer.p, "q": layer.q}
+            for i, layer in enumerate(layers)]
+
+
+def put_texture(store: BlobStore, layers: list[Layer]) -> dict[str, Any]:
+    """Store the float16 texture of ``layers`` (``coefficients.bin``, module docstring); its manifest entry."""
+    height, width = int(layers[0].pixels.shape[0]), int(layers[0].pixels.shape[1])
+    bin_bytes, clamped = half_layers(layers)
+    return {
+        "sha256": store.put_bytes(bin_bytes),
+        "bytes": len(bin_bytes),
+        "media_type": "application/octet-stream",
+        "dtype": "float16",
+        "byte_order": "little",
+        "shape": [len(layers), height, width, 3],
+        "order": "layer, row (row 0 = top of the lat-long map, +Y), column, RGB",
+        "clamped_values": clamped,
+        "webgl": {
+            "target": "TEXTURE_2D_ARRAY",
+            "internalformat": "RGB16F",
+            "format": "RGB",
+            "type": "HALF_FLOAT",
+            "width": width,
+            "height": height,
+            "depth": len(layers),
+        },
+    }
+
+
 def write_result(
     store: BlobStore,
     job_id: str,
@@ -109,8 +140,6 @@ def write_result(
             )
         exr_size = tmp.stat().st_size
         exr_digest = store.put_file(tmp)
-    bin_bytes, clamped = half_layers(layers)
-    bin_digest = store.put_bytes(bin_bytes)
     manifest: dict[str, Any] = {
         "format": MANIFEST_FORMAT,
         "format_version": MANIFEST_VERSION,
@@ -118,8 +147,7 @@ def write_result(
         "representation": representation,
         "height": height,
         "width": width,
-        "layers": [{"index": i, "name": layer.name, "component": layer.component, "p": layer.p, "q": layer.q}
-                   for i, layer in enumerate(layers)],
+        "layers": layer_entries(layers),
         "files": {
             EXR_NAME: {
                 "sha256": exr_digest,
@@ -129,25 +157,7 @@ def write_result(
                 "channels": ["R", "G", "B"] if layers[0].name == "" else [f"{lay.name}.{c}" for lay in layers
                                                                           for c in "RGB"],
             },
-            BIN_NAME: {
-                "sha256": bin_digest,
-                "bytes": len(bin_bytes),
-                "media_type": "application/octet-stream",
-                "dtype": "float16",
-                "byte_order": "little",
-                "shape": [len(layers), height, width, 3],
-                "order": "layer, row (row 0 = top of the lat-long map, +Y), column, RGB",
-                "clamped_values": clamped,
-                "webgl": {
-                    "target": "TEXTURE_2D_ARRAY",
-                    "internalformat": "RGB16F",
-                    "format": "RGB",
-                    "type": "HALF_FLOAT",
-                    "width": width,
-                    "height": height,
-                    "depth": len(layers),
-                },
-            },
+            BIN_NAME: put_texture(store, layers),
         },
         **description,
     }

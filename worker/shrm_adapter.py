@@ -18,22 +18,30 @@ from worker.progress import Reporter
 from worker.results import Layer, strip_volatile
 
 
+def shrm_layers(shrm: Any) -> list[Layer]:
+    """The texture layers of an SHRM (``relight.shrm.SHRM``): one ``c<k>.p<p>.q<q>`` layer per map, components in
+    order."""
+    from relight.shrm_io import layer_name
+
+    return [
+        Layer(name=layer_name(k, p, q), p=p, q=q, pixels=np.asarray(m, dtype=np.float32), component=k)
+        for k, comp in enumerate(shrm.components)
+        for (p, q), m in zip(comp.terms, comp.maps, strict=True)
+    ]
+
+
 def prefilter(
     pixels: NDArray[np.float32], brdf: Any, params: dict[str, Any], report: Reporter
 ) -> tuple[list[Layer], str, dict[str, Any], dict[str, str]]:
     """Run ``create_shrm`` and return (layers, representation, report, EXR attributes)."""
     from relight.shrm import create_shrm
-    from relight.shrm_io import ATTRIBUTE, layer_name, manifest
+    from relight.shrm_io import ATTRIBUTE, manifest
 
     order = params.get("order")
     shrm = create_shrm(pixels, brdf, epsilon=params.get("epsilon") if order is None else None, order=order,
                        p_order=params.get("p_order"), size=params.get("size"))
     report("writing", 0.9)
-    layers = [
-        Layer(name=layer_name(k, p, q), p=p, q=q, pixels=np.asarray(m, dtype=np.float32), component=k)
-        for k, comp in enumerate(shrm.components)
-        for (p, q), m in zip(comp.terms, comp.maps, strict=True)
-    ]
+    layers = shrm_layers(shrm)
     man = strip_volatile(manifest(shrm))
     predicted = dict(shrm.report.get("predicted") or {})
     comps = shrm.components

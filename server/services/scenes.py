@@ -5,7 +5,8 @@ tolerance or a time budget) and by the core's own parser (``relight.planner.scen
 bounding radius, unique names, every material parsed). Materials are resolved like every BRDF reference of the API
 (an id from ``POST /brdfs``, a spec object or a spec string) and stored by their canonical spec, so the scene's id
 (the SHA-256 of its canonical form) does not depend on how a material was written. The run's files (one SHRM per
-object, its view map, previews) go into the blob store; ``GET /scenes/{id}/files/{name}`` serves them verified.
+object, as EXR and as the viewer's float16 texture with its manifest; its view map; previews) go into the blob
+store; ``GET /scenes/{id}/files/{name}`` serves them verified.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from worker.specs import to_core
 
 class SceneService(AnalysisService):
     kind = "scene"
+    result_version = 2  # 2: per-object float16 textures for the viewer ({name}.coefficients.bin, .texture.json)
 
     def task(self) -> Callable[..., Any]:
         from worker.analysis import run_scene

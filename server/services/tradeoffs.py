@@ -63,6 +63,9 @@ class AnalysisService(ABC):
     """Submission, watching and lookup of one kind of analysis job (module docstring)."""
 
     kind: str = ""
+    #: Version of this kind's result format, part of its ids: a result stored in an older format is never served
+    #: for a new request (it is computed again under the new id).
+    result_version: int = 1
 
     def __init__(self, settings: Settings, db: Database, store: BlobStore, cluster: Cluster, envmaps: EnvmapService,
                  brdfs: BrdfService) -> None:
@@ -92,7 +95,8 @@ class AnalysisService(ABC):
 
     async def submit_request(self, request: dict[str, Any]) -> tuple[Analysis, int]:
         """The row for ``request`` (created, or found) and 202 (work pending) or 200 (finished)."""
-        job_id = content_id({"task": self.kind, "algorithm_version": relight.ALGORITHM_VERSION, "request": request})
+        job_id = content_id({"task": self.kind, "algorithm_version": relight.ALGORITHM_VERSION,
+                             "result_version": self.result_version, "request": request})
         row = await in_thread(self._row, job_id)
         if row is not None:
             if row.state == JobState.succeeded or (row.state == JobState.failed and not row.retryable):
@@ -177,6 +181,7 @@ def service_for(request: Request, attr: str, cls: type[AnalysisService]) -> Any:
 
 class TradeoffService(AnalysisService):
     kind = "tradeoff"
+    result_version = 2  # 2: Mitsuba 3 errors (points' mitsuba_error, meta.mitsuba)
 
     def task(self) -> Callable[..., Any]:
         from worker.analysis import compute_tradeoff

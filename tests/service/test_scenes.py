@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import tempfile
 import time
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
 
 from client.sdk import RelightClient
@@ -56,10 +58,38 @@ def test_scene_job_plan_result_and_files(client: RelightClient, http: httpx.Clie
     assert http.get(f"/scenes/{sid}/files/chalk.view.exr", headers={"If-None-Match": f.headers["etag"]}
                     ).status_code == 304
     assert_problem(http.get(f"/scenes/{sid}/files/nothing.exr"), 404, "nothing.exr")
+    for name in ("chalk", "metal"):
+        check_texture(http, sid, done, name)
     # the same scene again: 200 with the stored result
     again = http.post("/scenes", json=scene(env.id))
     assert again.status_code == 200 and again.json()["id"] == sid and again.json()["state"] == "succeeded"
     assert_healthy(http)
+
+
+def check_texture(http: httpx.Client, sid: str, done: dict[str, Any], name: str) -> None:
+    """The object's viewer texture holds its SHRM's layers as float16 (the same numbers as ``{name}.shrm.exr`` to
+    half precision: relative 2^-11), and its manifest describes them in the form ``/shrms`` manifests have
+    (``relight.gl.layout.from_manifest`` reads it, as ``web/src/layout.js`` does)."""
+    from relight.gl import layout as gl_layout
+    from relight.shrm_io import read_shrm
+    from worker.shrm_adapter import shrm_layers
+
+    files = next(o for o in done["result"]["objects"] if o["name"] == name)["files"]
+    assert files["texture"] == f"{name}.texture.json" and files["coefficients_bin"] == f"{name}.coefficients.bin"
+    manifest = http.get(f"/scenes/{sid}/files/{files['texture']}").raise_for_status().json()
+    data = http.get(f"/scenes/{sid}/files/{files['coefficients_bin']}").raise_for_status().content
+    exr = http.get(f"/scenes/{sid}/files/{files['shrm']}").raise_for_status().content
+    lay = gl_layout.from_manifest(manifest)
+    shape = manifest["files"]["coefficients.bin"]["shape"]
+    assert shape == [lay.num_layers, 16, 32, 3] and len(data) == 2 * np.prod(shape)
+    assert manifest["files"]["coefficients.bin"]["sha256"] == done["files"][files["coefficients_bin"]]["sha256"]
+    texture = np.frombuffer(data, dtype="<f2").astype(np.float64).reshape(shape)
+    with tempfile.NamedTemporaryFile(suffix=".exr") as f:
+        f.write(exr)
+        f.flush()
+        want = np.stack([layer.pixels for layer in shrm_layers(read_shrm(f.name))])
+    assert texture.shape == want.shape
+    np.testing.assert_allclose(texture, want, rtol=2.0**-11, atol=1e-7)
 
 
 @pytest.mark.parametrize(("patch", "status", "fragment"), [

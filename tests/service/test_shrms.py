@@ -177,6 +177,7 @@ def test_shrm_end_to_end_bit_exact(client: RelightClient, http: httpx.Client, da
 def test_async_client(server: Server, data_tmp: Path) -> None:
     """``AsyncRelightClient`` does the same round trip (upload from a file, submit, events, download)."""
     import asyncio
+    import concurrent.futures
 
     from client import AsyncRelightClient
     from client.errors import ApiError
@@ -197,7 +198,10 @@ def test_async_client(server: Server, data_tmp: Path) -> None:
             shape = manifest.files["coefficients.bin"]["shape"]
             return done, await c.download(done.id, "coefficients.bin"), 2 * int(np.prod(shape))
 
-    done, data, size = asyncio.run(run())
+    # a thread of its own: asyncio.run refuses to start where a loop runs (Playwright's sync API keeps one in the
+    # main thread once a browser test of the same session has started it)
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        done, data, size = pool.submit(asyncio.run, run()).result()
     assert done.state == JobState.succeeded
     assert done.predicted is not None and done.predicted.representation == "reflection_map"
     assert len(data) == size  # float16 layers, as the manifest describes them

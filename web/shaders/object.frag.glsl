@@ -3,7 +3,8 @@
 // Defines: one of SHADING_VIEW_MAP (distant viewer: one lookup per component in the per-frame eq. 12 map),
 // SHADING_LOCAL (near viewer: eq. 6 per pixel, shrm.glsl) or SHADING_PLAIN_ENV (the environment map looked up
 // at R: the single-texture baseline); OBJECT_SPHERE (exact normals: the ray through the pixel centre, from
-// gl_FragCoord and the inverse view-projection, meets the sphere; the rasterised proxy only has to cover it);
+// gl_FragCoord and the inverse view-projection, meets the sphere; the rasterised proxy only has to cover it, and
+// the depth written is the hit point's, so spheres and meshes of a scene occlude each other exactly);
 // OUTPUT_LINEAR (write radiance, e.g. to a float target) instead of the display transform (tonemap.glsl).
 //
 // V is the unit vector from the surface toward the viewer: the pixel's own (perspective) or the camera's
@@ -30,6 +31,7 @@ uniform vec2 u_env_rotation;
 #ifdef OBJECT_SPHERE
 uniform vec4 u_sphere;  // centre, radius
 uniform mat4 u_inverse_view_projection;
+uniform mat4 u_view_projection;
 uniform vec2 u_viewport;  // render target size in pixels
 #endif
 #ifdef SHADING_PLAIN_ENV
@@ -54,6 +56,8 @@ void main() {
         discard;
     }
     vec3 n = (q - sqrt(h2) * ray) / u_sphere.w;
+    vec4 hit = u_view_projection * vec4(u_sphere.xyz + u_sphere.w * n, 1.0);
+    gl_FragDepth = 0.5 * hit.z / hit.w + 0.5;  // the default depth range [0, 1]
 #else
     vec3 ray = u_orthographic ? -u_view_direction : normalize(v_world - u_camera_position);
     vec3 n = normalize(v_normal);

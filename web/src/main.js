@@ -4,7 +4,7 @@ import { Api, ApiError } from './api.js';
 import { compare } from './compare.js';
 import { modelsFromOpenapi, specFor } from './materials.js';
 import { loadFile, loadSample } from './objects.js';
-import { exampleScene, parseScene, showScene } from './scene.js';
+import { exampleScene, parseScene, sceneItems, showScene } from './scene.js';
 import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
 
@@ -25,6 +25,7 @@ const state = {
   tradeoff: null, // the last GET /tradeoffs/{id} answer
   tradeoffKey: null, // JSON of the material and map it was run for
   scene: null, // the last GET /scenes/{id} answer
+  sceneShown: null, // id of the scene drawn in the 3-D view (null: the single object)
 };
 window.relight = state;
 
@@ -235,6 +236,7 @@ async function compute() {
 
 async function loadResult(id) {
   const [manifest, coefficients] = await Promise.all([state.api.manifest(id), state.api.coefficients(id)]);
+  leaveScene();
   state.viewer.setShrm(manifest, coefficients);
   state.shrmId = id;
   $('progress').value = 1;
@@ -318,11 +320,32 @@ async function runScene() {
     await showScene($('scene-plan'), pub, state.api);
     if (pub.state !== 'succeeded') {
       showError('scene-error', `the scene ${pub.state}${pub.failure_reason ? `: ${pub.failure_reason}` : ''}`);
+    } else {
+      await showSceneIn3d(pub);
     }
   } catch (err) {
     showError('scene-error', err);
   } finally {
     $('scene-run').disabled = false;
+  }
+}
+
+/** Every object of a finished scene in the 3-D view, each with its own SHRM and planned viewer. */
+async function showSceneIn3d(pub) {
+  const shape = (name) => (name === 'sphere' ? 'sphere' : loadSample(name));
+  state.viewer.setSceneObjects(await sceneItems(pub, state.api, shape));
+  state.sceneShown = pub.id;
+  $('scene-single').hidden = false;
+  $('overlay').textContent = `scene ${pub.scene?.name || pub.id.slice(0, 10)}: `
+    + `${state.viewer.sceneObjects.length} objects, each with its own SHRM`;
+}
+
+/** Back to the current material on one object. */
+function leaveScene() {
+  if (state.sceneShown) {
+    state.viewer.clearScene();
+    state.sceneShown = null;
+    $('scene-single').hidden = true;
   }
 }
 
@@ -389,6 +412,7 @@ async function uploadBrdf(file) {
 // ------------------------------------------------------------------------------------------------ display
 async function setObject(name) {
   showError('mesh-error', null);
+  leaveScene();
   try {
     if (name === 'sphere') {
       state.viewer.setObject('sphere');
@@ -402,6 +426,7 @@ async function setObject(name) {
 
 async function uploadMesh(file) {
   showError('mesh-error', null);
+  leaveScene();
   try {
     state.viewer.setObject(await loadFile(file), file.name);
   } catch (err) {
@@ -514,6 +539,7 @@ async function main() {
   displayOptions();
   $('tradeoff-run').addEventListener('click', runTradeoff);
   $('scene-run').addEventListener('click', runScene);
+  $('scene-single').addEventListener('click', leaveScene);
   $('scene-example').addEventListener('click', () => {
     $('scene-json').value = JSON.stringify(exampleScene(state.envmapId, currentBrdf()), null, 1);
   });

@@ -1,8 +1,9 @@
 // Scenes (POST /scenes, relight/planner.py): the plan per object (what is simulated, what is skipped and why), a
-// top view of where the objects are (from each object's distance and view direction; the viewer at the origin) and,
-// per object, the server's render of that object's own SHRM (`{name}.sphere.png`, asked for with preview_size).
-// The per-object SHRMs themselves are EXR files (`{name}.shrm.exr`), not the float16 `coefficients.bin` the 3-D view
-// loads, so the 3-D view keeps showing the single-object result.
+// top view of where the objects are (from each object's distance and view direction; the viewer at the origin),
+// per object the server's render of that object's own SHRM (`{name}.sphere.png`, asked for with preview_size),
+// and the scene itself in the 3-D view: every object at its place, lit by its own SHRM (the float16 texture
+// `{name}.coefficients.bin` with its manifest `{name}.texture.json`), with the viewer (distant: eq. 12, near:
+// eq. 6) its plan chose.
 
 /** Parse the textarea: a SceneCreate object; asks for sphere previews unless the scene says otherwise. */
 export function parseScene(text, envmapId) {
@@ -48,11 +49,39 @@ export function sceneObjects(pub) {
   });
 }
 
-/** Top-view position of an object: the viewer at the origin, the object at -distance * view (x, z). */
-export function objectPosition(o) {
+/** World position of an object's centre: the viewer at the origin, the object at -distance * view. */
+export function objectCenter(o) {
   const v = o.view || [0, 0, 1];
   const n = Math.hypot(...v) || 1;
-  return { x: (-o.distance * v[0]) / n, z: (-o.distance * v[2]) / n };
+  return v.map((x) => (-o.distance * x) / n);
+}
+
+/** Top-view position of an object (x, z of objectCenter). */
+export function objectPosition(o) {
+  const [x, , z] = objectCenter(o);
+  return { x, z };
+}
+
+/**
+ * The 3-D view's items of a finished scene (ShrmViewer.setSceneObjects): per object its centre, bounding radius,
+ * planned viewer, geometry (`loadShape(shape)`: 'sphere' or a BufferGeometry in the unit ball) and SHRM texture.
+ * Throws when an object has no texture (a scene stored before textures were part of the result).
+ */
+export async function sceneItems(pub, api, loadShape) {
+  if (pub?.state !== 'succeeded') {
+    throw new Error(`the scene is ${pub?.state}; only a finished scene can be shown`);
+  }
+  const objects = sceneObjects(pub);
+  return Promise.all(objects.map(async (o) => {
+    if (!o.files.texture || !o.files.coefficients_bin) {
+      throw new Error(`scene object ${o.name} has no viewer texture`);
+    }
+    const [manifestBytes, buffer, geometry] = await Promise.all([api.sceneFile(pub.id, o.files.texture),
+      api.sceneFile(pub.id, o.files.coefficients_bin), loadShape(o.shape || 'sphere')]);
+    const manifest = JSON.parse(new TextDecoder().decode(manifestBytes));
+    return { name: o.name, center: objectCenter(o), radius: Number(o.size), mode: o.viewer === 'near' ? 'near'
+      : 'distant', geometry, manifest, buffer };
+  }));
 }
 
 /** A top-view SVG of the objects (circles of their bounding radius; log-spaced distances keep far ones visible). */

@@ -7,38 +7,22 @@
 //  - near viewer (eq. 6): every layer is sampled at the centre and weighted with the harmonics of the pixel's
 //    own view direction, evaluated in the shader.
 // P = 0 takes the same path with one layer. The environment rotates about +Y by rotating the lookups instead of
-// the data (a shift of beta: nothing is recomputed).
+// the data (a shift of beta: nothing is recomputed). Per-object state (textures, view map, placement) lives in
+// shrm_object.js: one object at the origin for the current material, or a scene's objects (setSceneObjects), each
+// with its own SHRM and the viewer its plan chose.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
-import { globalLayers } from './global.js';
-import { defines as layoutDefines, fromManifest, halfArray, numLayers, rgbaLayers, uniformWeights } from './layout.js';
 import { build, loadSources } from './shaders.js';
-import { rotateY } from './sh.js';
+import { fullscreenGeometry, ShrmObject, sphereProxy, withShaderAttributes } from './shrm_object.js';
 import { TONEMAPS } from './tonemap.js';
+
+export { withShaderAttributes };
 
 const SHADER_FILES = ['fullscreen.vert.glsl', 'object.vert.glsl', 'object.frag.glsl', 'view_map.frag.glsl',
   'background.frag.glsl'];
 const HALF_ONE = 0x3c00;
-
-/** A full-screen triangle in clip space (fullscreen.vert.glsl). */
-function fullscreenGeometry() {
-  const g = new THREE.BufferGeometry();
-  const pos = new THREE.BufferAttribute(new Float32Array([-1, -1, 3, -1, -1, 3]), 2);
-  g.setAttribute('a_position', pos);
-  g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(9), 3)); // three.js counts vertices here
-  return g;
-}
-
-/** Give a geometry the shader's attribute names (a_position, a_normal) alongside three.js's own. */
-export function withShaderAttributes(geometry) {
-  geometry.setAttribute('a_position', geometry.getAttribute('position'));
-  if (!geometry.getAttribute('normal')) {
-    geometry.computeVertexNormals();
-  }
-  geometry.setAttribute('a_normal', geometry.getAttribute('normal'));
-  return geometry;
-}
+const ORBIT_MIN_DISTANCE = 2.0; // the unit sphere's proxy box reaches sqrt(3)
 
 export class ShrmViewer {
   constructor(canvas, { shaderBase = 'shaders/' } = {}) {
@@ -57,61 +41,40 @@ export class ShrmViewer {
     this.orthoCamera = new THREE.OrthographicCamera(-1, 1, 1, -1, 0.5, 6);
     this.controls = new OrbitControls(this.camera, canvas);
     this.controls.enableDamping = false;
-    this.controls.minDistance = 2.0; // the sphere proxy box reaches sqrt(3)
+    this.controls.minDistance = ORBIT_MIN_DISTANCE;
     this.controls.maxDistance = 20;
-    this.fixedView = null; // {view, orthographic} for tests and the comparison
+    this.fixedView = null; // {view, orthographic, distance} for tests and the comparison
     this.fixedSize = null; // [width, height] for tests and the benchmark
 
     this.options = { mode: 'distant', exposure: 0, tonemap: 'aces', rotation: 0, background: true, shading: 'shrm' };
+    // uniforms every object shares (camera, display, environment); each ShrmObject adds its own
     this.uniforms = {
-      u_model: { value: new THREE.Matrix4() },
       u_view_projection: { value: new THREE.Matrix4() },
-      u_normal_matrix: { value: new THREE.Matrix3() },
       u_inverse_view_projection: { value: new THREE.Matrix4() },
       u_camera_position: { value: new THREE.Vector3() },
       u_view_direction: { value: new THREE.Vector3(0, 0, 1) },
-      u_view_env: { value: new THREE.Vector3(0, 0, 1) },
       u_orthographic: { value: false },
       u_env_rotation: { value: new THREE.Vector2(1, 0) },
-      u_sphere: { value: new THREE.Vector4(0, 0, 0, 1) },
       u_viewport: { value: new THREE.Vector2(1, 1) },
       u_exposure: { value: 0 },
       u_tonemap: { value: TONEMAPS.aces },
-      u_coefficients: { value: null },
-      u_layer_weight: { value: new Float32Array(1) },
-      u_view_map: { value: null },
-      u_view_map_rows: { value: 1 },
       u_environment: { value: null },
     };
-    // the view-map pass reads the global layers with their own weights; the other uniforms are shared
-    this.viewMapUniforms = {
-      u_coefficients: { value: null },
-      u_layer_weight: { value: new Float32Array(1) },
-      u_view_env: this.uniforms.u_view_env,
-      u_view_map_rows: this.uniforms.u_view_map_rows,
-    };
-    this.layout = null;
-    this.globalLayout = null;
-    this._viewMapKey = null;
     this.read = null;
-    this.objectName = 'sphere';
-    this.objectGeometry = null;
     this.frameTimes = [];
     this._materials = new Map();
 
     this.background = new THREE.Mesh(fullscreenGeometry(), null);
     this.background.frustumCulled = false;
     this.background.renderOrder = -1;
-    this.object = new THREE.Mesh(undefined, null);
-    this.object.frustumCulled = false;
-    this.scene.add(this.background, this.object);
-
-    this.viewMapScene = new THREE.Scene();
-    this.viewMapQuad = new THREE.Mesh(fullscreenGeometry(), null);
-    this.viewMapQuad.frustumCulled = false;
-    this.viewMapScene.add(this.viewMapQuad);
-    this.viewMapTarget = null;
-    this.environment = null;
+    this.scene.add(this.background);
+    // the single-object view (the current material's SHRM on the sphere or a mesh at the origin) ...
+    this.primary = new ShrmObject(this, { name: 'object' });
+    this.scene.add(this.primary.mesh);
+    // ... or a scene's objects, each with its own SHRM (setSceneObjects)
+    this.sceneObjects = [];
+    this.sceneTarget = new THREE.Vector3();
+    this.sceneHalfAngles = [0, 0]; // largest angles of the scene's objects off the view axis, horizontal, vertical
   }
 
   async init() {
@@ -120,57 +83,27 @@ export class ShrmViewer {
     return this;
   }
 
-  // ------------------------------------------------------------------------------------------------ data
-  /**
-   * Load an SHRM result: its manifest and the bytes of coefficients.bin (float16 RGB layers). The layers as
-   * stored (local maps, eq. 6) serve the near viewer; their global form (eq. 8, computed here once) serves the
-   * distant viewer's per-frame eq. 12.
-   */
-  setShrm(manifest, coefficientsBuffer) {
-    const layout = fromManifest(manifest);
-    const halves = halfArray(coefficientsBuffer);
-    const arrayTexture = (data, lay) => {
-      const tex = new THREE.DataArrayTexture(data, lay.width, lay.height, numLayers(lay));
-      tex.type = THREE.HalfFloatType;
-      tex.format = THREE.RGBAFormat;
-      tex.internalFormat = 'RGBA16F';
-      tex.minFilter = THREE.LinearFilter;
-      tex.magFilter = THREE.LinearFilter;
-      tex.wrapS = THREE.RepeatWrapping;
-      tex.wrapT = THREE.ClampToEdgeWrapping;
-      tex.generateMipmaps = false;
-      tex.needsUpdate = true;
-      return tex;
-    };
-    this.uniforms.u_coefficients.value?.dispose();
-    this.uniforms.u_coefficients.value = arrayTexture(rgbaLayers(layout, halves), layout);
-    const global = globalLayers(layout, halves);
-    this.globalLayout = global.layout;
-    this.viewMapUniforms.u_coefficients.value?.dispose();
-    this.viewMapUniforms.u_coefficients.value = arrayTexture(global.rgba, global.layout);
-    this.viewMapUniforms.u_layer_weight.value = new Float32Array(numLayers(global.layout));
-    this._viewMapKey = null;
+  /** The objects drawn now: a scene's, or the single object. */
+  get objects() {
+    return this.sceneObjects.length ? this.sceneObjects : [this.primary];
+  }
 
-    this.viewMapTarget?.dispose();
-    this.viewMapTarget = new THREE.WebGLRenderTarget(2 * layout.height, layout.height * layout.components.length, {
-      type: this.floatLinear ? THREE.FloatType : THREE.HalfFloatType,
-      format: THREE.RGBAFormat,
-      minFilter: THREE.LinearFilter,
-      magFilter: THREE.LinearFilter,
-      wrapS: THREE.RepeatWrapping,
-      wrapT: THREE.ClampToEdgeWrapping,
-      depthBuffer: false,
-      generateMipmaps: false,
-    });
-    this.uniforms.u_view_map.value = this.viewMapTarget.texture;
-    this.uniforms.u_view_map_rows.value = layout.height;
-    this.uniforms.u_layer_weight.value = new Float32Array(numLayers(layout));
-    this.layout = layout;
-    this.manifest = manifest;
-    this._disposeMaterials(false);
-    this.viewMapQuad.material = this._material('view_map', () => this._raw('fullscreen.vert.glsl', 'view_map.frag.glsl',
-      layoutDefines(global.layout), { uniforms: this.viewMapUniforms }));
-    this._updateObjectMaterial();
+  get layout() {
+    return this.primary.layout;
+  }
+
+  get manifest() {
+    return this.primary.manifest;
+  }
+
+  get objectName() {
+    return this.primary.shape;
+  }
+
+  // ------------------------------------------------------------------------------------------------ data
+  /** Load the single object's SHRM: its result manifest and the bytes of coefficients.bin (ShrmObject.setShrm). */
+  setShrm(manifest, coefficientsBuffer) {
+    this.primary.setShrm(manifest, coefficientsBuffer);
   }
 
   /** The sharp background / baseline environment: float16 RGB lat-long texels (Uint16Array), row 0 = +Y. */
@@ -192,37 +125,117 @@ export class ShrmViewer {
     tex.needsUpdate = true;
     this.uniforms.u_environment.value?.dispose();
     this.uniforms.u_environment.value = tex;
-    this.background.material = this._material('background', () => this._raw('fullscreen.vert.glsl',
+    this.background.material = this._material('background', () => this.rawMaterial('fullscreen.vert.glsl',
       'background.frag.glsl', {}, { depthTest: false, depthWrite: false }));
-    this._updateObjectMaterial();
+    this._updateMaterials();
   }
 
-  /** 'sphere' (exact: ray-sphere intersection inside a proxy box), or a BufferGeometry (normalised here). */
+  /** The single object: 'sphere' (exact: ray-sphere intersection inside a proxy box), or a BufferGeometry. */
   setObject(nameOrGeometry, label = 'mesh') {
-    let geometry;
-    if (nameOrGeometry === 'sphere') {
-      geometry = withShaderAttributes(new THREE.BoxGeometry(2, 2, 2));
-      this.objectName = 'sphere';
-    } else {
-      geometry = withShaderAttributes(nameOrGeometry);
-      this.objectName = label;
+    this.primary.setGeometry(nameOrGeometry, label);
+  }
+
+  /**
+   * Show a scene: several objects, each `{name, center: [x, y, z], radius, mode: 'distant' | 'near', geometry:
+   * 'sphere' | BufferGeometry (in the unit ball), manifest, buffer}` (its SHRM as ShrmObject.setShrm takes it).
+   * The viewer stands at `eye` (the scene's viewer, the origin) and looks at the nearest object, with a field of
+   * view wide enough for all of them. An empty list returns to the single object.
+   */
+  setSceneObjects(items, { eye = [0, 0, 0] } = {}) {
+    const made = [];
+    try {
+      for (const it of items) {
+        const obj = new ShrmObject(this, { name: it.name, center: it.center, radius: it.radius, mode: it.mode ?? null });
+        made.push(obj);
+        obj.setGeometry(it.geometry ?? 'sphere', it.name);
+        obj.setShrm(it.manifest, it.buffer);
+      }
+    } catch (err) {
+      made.forEach((o) => o.dispose());
+      throw err;
     }
-    this.objectGeometry?.dispose();
-    this.objectGeometry = geometry;
-    this.object.geometry = geometry;
-    this._updateObjectMaterial();
+    this.sceneObjects.forEach((o) => o.dispose());
+    this.sceneObjects = made;
+    made.forEach((o) => this.scene.add(o.mesh));
+    this.primary.mesh.visible = !made.length;
+    if (!made.length) {
+      this.primary.updateMaterial();
+      this._frameSingle();
+      return;
+    }
+    this._frameScene(new THREE.Vector3(...eye));
+  }
+
+  clearScene() {
+    this.setSceneObjects([]);
+  }
+
+  _frameSingle() {
+    this.camera.fov = 35;
+    this.camera.near = 0.05;
+    this.camera.far = 100;
+    this.camera.position.set(0, 0.6, 3.6);
+    this.sceneTarget.set(0, 0, 0);
+    this.controls.target.set(0, 0, 0);
+    this.controls.minDistance = ORBIT_MIN_DISTANCE;
+    this.controls.maxDistance = 20;
+    this.camera.lookAt(0, 0, 0);
+    this.controls.update();
+  }
+
+  /**
+   * Camera at `eye` looking at the nearest object, with a field of view that holds every object (see _fitFov;
+   * at most 100 degrees vertically).
+   */
+  _frameScene(eye) {
+    const objs = this.sceneObjects;
+    const dist = (o) => o.center.distanceTo(eye);
+    const nearest = objs.reduce((a, b) => (dist(b) < dist(a) ? b : a));
+    this.camera.position.copy(eye);
+    this.camera.up.set(0, 1, 0);
+    this.camera.lookAt(nearest.center);
+    this.camera.updateMatrixWorld();
+    const toCamera = this.camera.matrixWorldInverse;
+    let x = 0;
+    let y = 0;
+    let far = 0;
+    for (const o of objs) {
+      const d = dist(o);
+      const c = o.center.clone().applyMatrix4(toCamera); // camera looks down -Z
+      const a = Math.asin(Math.min(1, o.radius / d));
+      x = Math.max(x, Math.atan2(Math.abs(c.x), -c.z) + a);
+      y = Math.max(y, Math.atan2(Math.abs(c.y), -c.z) + a);
+      far = Math.max(far, d + o.radius);
+    }
+    this.sceneHalfAngles = [Math.min(x, 1.45), Math.min(y, 1.45)];
+    const closest = Math.min(...objs.map((o) => dist(o) - o.radius));
+    this.camera.near = Math.max(1e-3, 0.5 * closest);
+    this.camera.far = 2 * far;
+    this.sceneTarget.copy(nearest.center);
+    this.controls.target.copy(nearest.center);
+    this.controls.minDistance = 1.1 * nearest.radius;
+    this.controls.maxDistance = 2 * far;
+    this.controls.update();
+  }
+
+  /** A scene's vertical field of view for this aspect: its objects' half-angles (x, y) with a 15 % margin. */
+  _fitFov(aspect) {
+    const [hx, hy] = this.sceneHalfAngles;
+    const t = 1.15 * Math.max(Math.tan(hy), Math.tan(hx) / aspect);
+    this.camera.fov = Math.min(100, Math.max(20, (2 * Math.atan(t) * 180) / Math.PI));
   }
 
   setOptions(options) {
     const before = this.options.mode + this.options.shading;
     Object.assign(this.options, options);
     if (before !== this.options.mode + this.options.shading) {
-      this._updateObjectMaterial();
+      this._updateMaterials();
     }
   }
 
   // ------------------------------------------------------------------------------------------------ materials
-  _raw(vertexName, fragmentName, defines, extra = {}) {
+  /** A RawShaderMaterial of the loader's shaders (web/shaders) with `defines`; uniforms default to the shared ones. */
+  rawMaterial(vertexName, fragmentName, defines, extra = {}) {
     // three.js writes "#version 300 es" itself (glslVersion GLSL3) followed by its SHADER_NAME defines, so the
     // loader's version line is dropped here; everything after it is the loader's output unchanged.
     const body = (name, defs) => build(name, { defines: defs, read: this.read }).replace(/^#version 300 es\n/, '');
@@ -242,46 +255,11 @@ export class ShrmViewer {
     return this._materials.get(key);
   }
 
-  _disposeMaterials(all) {
-    for (const [key, m] of this._materials) {
-      if (all || key !== 'background') {
-        m.dispose();
-        this._materials.delete(key);
-      }
-    }
-  }
-
-  _objectDefines(shading, output = 'display') {
-    const defs = shading === 'plain' ? {} : { ...layoutDefines(this.layout) };
-    defs[{ distant: 'SHADING_VIEW_MAP', near: 'SHADING_LOCAL', plain: 'SHADING_PLAIN_ENV' }[shading]] = null;
-    if (this.objectName === 'sphere') {
-      defs.OBJECT_SPHERE = null;
-    }
-    if (output === 'linear') {
-      defs.OUTPUT_LINEAR = null;
-    }
-    return defs;
-  }
-
-  _objectMaterial(shading, output = 'display') {
-    const key = `object:${this.objectName === 'sphere' ? 'sphere' : 'mesh'}:${shading}:${output}`;
-    return this._material(key, () => this._raw('object.vert.glsl', 'object.frag.glsl',
-      this._objectDefines(shading, output)));
-  }
-
-  _shading() {
-    return this.options.shading === 'plain' ? 'plain' : this.options.mode;
-  }
-
-  _updateObjectMaterial() {
-    if (!this.read) {
-      return;
-    }
-    const shading = this._shading();
-    const ready = shading === 'plain' ? this.uniforms.u_environment.value : this.layout;
-    this.object.visible = !!ready;
-    if (ready) {
-      this.object.material = this._objectMaterial(shading);
+  _updateMaterials() {
+    this.primary.updateMaterial();
+    this.sceneObjects.forEach((o) => o.updateMaterial());
+    if (this.sceneObjects.length) {
+      this.primary.mesh.visible = false;
     }
   }
 
@@ -319,8 +297,8 @@ export class ShrmViewer {
     if (Math.abs(v.y) > 1 - 1e-9) {
       cam.up.set(0, 0, 1);
     }
-    cam.position.copy(v).multiplyScalar(distance);
-    cam.lookAt(0, 0, 0);
+    cam.position.copy(v).multiplyScalar(distance).add(this.sceneTarget);
+    cam.lookAt(this.sceneTarget);
     cam.updateMatrixWorld();
     return cam;
   }
@@ -328,47 +306,35 @@ export class ShrmViewer {
   _prepare(camera, width, height) {
     if (camera.isPerspectiveCamera) {
       camera.aspect = width / height;
+      if (this.sceneObjects.length && camera === this.camera) {
+        this._fitFov(camera.aspect);
+      }
     }
     camera.updateProjectionMatrix();
     camera.updateMatrixWorld();
     const u = this.uniforms;
-    const v = this.viewDirection();
     const rot = -this.options.rotation;
     u.u_env_rotation.value.set(Math.cos(rot), Math.sin(rot));
-    const vEnv = rotateY(v, rot);
-    u.u_view_direction.value.set(...v);
-    u.u_view_env.value.set(...vEnv);
+    u.u_view_direction.value.set(...this.viewDirection());
     u.u_camera_position.value.setFromMatrixPosition(camera.matrixWorld);
     u.u_orthographic.value = !!camera.isOrthographicCamera;
     u.u_viewport.value.set(width, height);
     u.u_view_projection.value.multiplyMatrices(camera.projectionMatrix, camera.matrixWorldInverse);
     u.u_inverse_view_projection.value.copy(u.u_view_projection.value).invert();
-    this.object.updateMatrixWorld();
-    u.u_model.value.copy(this.object.matrixWorld);
-    u.u_normal_matrix.value.getNormalMatrix(this.object.matrixWorld);
     u.u_exposure.value = this.options.exposure;
     u.u_tonemap.value = TONEMAPS[this.options.tonemap];
-    if (this.layout) {
-      u.u_layer_weight.value.set(uniformWeights(this.layout, vEnv));
-      this.viewMapUniforms.u_layer_weight.value.set(uniformWeights(this.globalLayout, vEnv));
+    for (const o of this.objects) {
+      o.prepare(camera, rot);
     }
-    return vEnv;
   }
 
-  /** Eq. 12 into the per-frame map, when the view (in the environment's frame) or the SHRM changed. */
-  _renderViewMap(force = false) {
-    if (!this.layout || this._shading() !== 'distant') {
-      return;
+  /** Eq. 12 into each distant-viewer object's map, when its view (in the environment's frame) or SHRM changed. */
+  _renderViewMaps(force = false) {
+    let n = 0;
+    for (const o of this.objects) {
+      n += o.renderViewMap(this.renderer, this.orthoCamera, force) ? 1 : 0;
     }
-    const key = this.uniforms.u_view_env.value.toArray().join(',');
-    if (!force && key === this._viewMapKey) {
-      return;
-    }
-    this._viewMapKey = key;
-    const r = this.renderer;
-    r.setRenderTarget(this.viewMapTarget);
-    r.render(this.viewMapScene, this.orthoCamera);
-    r.setRenderTarget(null);
+    return n;
   }
 
   /** One frame to the canvas; returns the CPU time spent issuing it (ms). */
@@ -377,7 +343,7 @@ export class ShrmViewer {
     const { width, height } = this.canvas;
     const camera = this._activeCamera();
     this._prepare(camera, width, height);
-    this._renderViewMap();
+    this._renderViewMaps();
     this.background.visible = this.options.background && !!this.uniforms.u_environment.value;
     this.renderer.setRenderTarget(null);
     this.renderer.render(this.scene, camera);
@@ -431,33 +397,39 @@ export class ShrmViewer {
   }
 
   /**
-   * Linear radiance of the unit sphere seen orthographically from `view` (relight.shrm.render_sphere's camera),
-   * by the current viewer mode (distant: eq. 12, near: eq. 6): Float32Array RGB, size x size, row 0 at the top;
-   * off-sphere pixels are 0.
+   * Linear radiance of a unit sphere seen orthographically from `view` (relight.shrm.render_sphere's camera),
+   * lit by the SHRM of `object` (default: the single object; or a scene object's name), by that object's viewer
+   * (distant: eq. 12, near: eq. 6): Float32Array RGB, size x size, row 0 at the top; off-sphere pixels are 0.
    */
-  renderLinearSphere(view, size) {
-    if (!this.layout) {
-      throw new Error('no SHRM loaded');
+  renderLinearSphere(view, size, object = null) {
+    const obj = object === null ? this.primary : this.sceneObjects.find((o) => o.name === object);
+    if (!obj?.layout) {
+      throw new Error(object === null ? 'no SHRM loaded' : `no scene object ${object} with an SHRM`);
     }
-    const saved = { fixed: this.fixedView, name: this.objectName, geometry: this.objectGeometry };
+    const saved = { fixed: this.fixedView, shape: obj.shape, geometry: obj.mesh.geometry,
+      center: obj.center.clone(), radius: obj.radius, target: this.sceneTarget.clone(),
+      visible: this.objects.map((o) => o.mesh.visible), material: obj.mesh.material };
     const target = new THREE.WebGLRenderTarget(size, size, { type: THREE.FloatType, format: THREE.RGBAFormat,
       minFilter: THREE.NearestFilter, magFilter: THREE.NearestFilter, depthBuffer: true, generateMipmaps: false });
-    const sphere = withShaderAttributes(new THREE.BoxGeometry(2, 2, 2));
+    const sphere = sphereProxy();
     try {
+      this.objects.forEach((o) => { o.mesh.visible = o === obj; });
+      obj.center.set(0, 0, 0);
+      obj.radius = 1;
+      this.sceneTarget.set(0, 0, 0);
       this.setFixedView({ view, orthographic: true });
-      this.objectName = 'sphere';
-      this.object.geometry = sphere;
+      obj.shape = 'sphere';
+      obj.mesh.geometry = sphere;
       const cam = this._activeCamera();
       this._prepare(cam, size, size);
-      const shading = this.options.mode;
+      const shading = obj.mode || this.options.mode;
       if (shading === 'distant') {
         const keep = this.options.shading;
         this.options.shading = 'shrm';
-        this._renderViewMap();
+        obj.renderViewMap(this.renderer, this.orthoCamera);
         this.options.shading = keep;
       }
-      const material = this.object.material;
-      this.object.material = this._objectMaterial(shading, 'linear');
+      obj.mesh.material = obj.material(shading, 'linear');
       const bg = this.background.visible;
       this.background.visible = false;
       this.renderer.setRenderTarget(target);
@@ -468,7 +440,6 @@ export class ShrmViewer {
       const raw = new Float32Array(size * size * 4);
       this.renderer.readRenderTargetPixels(target, 0, 0, size, size, raw);
       this.background.visible = bg;
-      this.object.material = material;
       const out = new Float32Array(size * size * 3);
       for (let y = 0; y < size; y += 1) {
         for (let x = 0; x < size; x += 1) {
@@ -485,9 +456,15 @@ export class ShrmViewer {
       target.dispose();
       sphere.dispose();
       this.setFixedView(saved.fixed);
-      this.objectName = saved.name;
-      this.object.geometry = saved.geometry;
-      this._updateObjectMaterial();
+      obj.shape = saved.shape;
+      obj.mesh.geometry = saved.geometry;
+      obj.mesh.material = saved.material;
+      obj.center.copy(saved.center);
+      obj.radius = saved.radius;
+      obj._viewMapKey = null;
+      this.sceneTarget.copy(saved.target);
+      this.objects.forEach((o, k) => { o.mesh.visible = saved.visible[k]; });
+      obj.updateMaterial();
     }
   }
 
