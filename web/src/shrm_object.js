@@ -37,8 +37,8 @@ export function sphereProxy() {
   return withShaderAttributes(new THREE.BoxGeometry(2, 2, 2));
 }
 
-function arrayTexture(data, layout) {
-  const tex = new THREE.DataArrayTexture(data, layout.width, layout.height, numLayers(layout));
+/** A float16 RGBA lat-long texture as every one here is sampled: bilinear, columns wrap, rows clamp, no mipmaps. */
+export function latlongHalfTexture(tex) {
   tex.type = THREE.HalfFloatType;
   tex.format = THREE.RGBAFormat;
   tex.internalFormat = 'RGBA16F';
@@ -49,6 +49,10 @@ function arrayTexture(data, layout) {
   tex.generateMipmaps = false;
   tex.needsUpdate = true;
   return tex;
+}
+
+function arrayTexture(data, layout) {
+  return latlongHalfTexture(new THREE.DataArrayTexture(data, layout.width, layout.height, numLayers(layout)));
 }
 
 export class ShrmObject {

@@ -14,7 +14,9 @@ import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
 import { build, loadSources } from './shaders.js';
-import { fullscreenGeometry, ShrmObject, sphereProxy, withShaderAttributes } from './shrm_object.js';
+import {
+  fullscreenGeometry, latlongHalfTexture, ShrmObject, sphereProxy, withShaderAttributes,
+} from './shrm_object.js';
 import { TONEMAPS } from './tonemap.js';
 
 export { withShaderAttributes };
@@ -115,14 +117,7 @@ export class ShrmViewer {
       rgba[4 * i + 2] = halfRgb[3 * i + 2];
       rgba[4 * i + 3] = HALF_ONE;
     }
-    const tex = new THREE.DataTexture(rgba, width, height, THREE.RGBAFormat, THREE.HalfFloatType);
-    tex.internalFormat = 'RGBA16F';
-    tex.minFilter = THREE.LinearFilter;
-    tex.magFilter = THREE.LinearFilter;
-    tex.wrapS = THREE.RepeatWrapping;
-    tex.wrapT = THREE.ClampToEdgeWrapping;
-    tex.generateMipmaps = false;
-    tex.needsUpdate = true;
+    const tex = latlongHalfTexture(new THREE.DataTexture(rgba, width, height));
     this.uniforms.u_environment.value?.dispose();
     this.uniforms.u_environment.value = tex;
     this.background.material = this._material('background', () => this.rawMaterial('fullscreen.vert.glsl',
@@ -145,7 +140,8 @@ export class ShrmViewer {
     const made = [];
     try {
       for (const it of items) {
-        const obj = new ShrmObject(this, { name: it.name, center: it.center, radius: it.radius, mode: it.mode ?? null });
+        const obj = new ShrmObject(this, { name: it.name, center: it.center, radius: it.radius,
+          mode: it.mode ?? null });
         made.push(obj);
         obj.setGeometry(it.geometry ?? 'sphere', it.name);
         obj.setShrm(it.manifest, it.buffer);
