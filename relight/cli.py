@@ -23,6 +23,7 @@ import numpy as np
 
 from relight.brdf.base import RadialLobe
 from relight.errors import InputError, RelightError
+from relight.reference import DEFAULT_TRUNCATION
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -182,7 +183,8 @@ def build_parser() -> argparse.ArgumentParser:
     rf.add_argument("--brdf", required=True)
     rf.add_argument("--size", type=int, required=True)
     rf.add_argument("--view", help="X,Y,Z view direction for view-dependent BRDFs")
-    rf.add_argument("--truncation", type=float, default=1e-4, help="lobe energy fraction dropped (App. D)")
+    rf.add_argument("--truncation", type=float, default=DEFAULT_TRUNCATION,
+                    help=f"lobe energy fraction dropped (App. D; default {DEFAULT_TRUNCATION:g})")
     rf.add_argument("--out", required=True)
     rf.set_defaults(func=cmd_reference)
 

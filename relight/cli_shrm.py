@@ -78,15 +78,17 @@ def reference_view(args: argparse.Namespace, brdf: Any, env: Any) -> int:
     import time
 
     from relight.envmap import write_exr
+    from relight.reference import DEFAULT_TRUNCATION
     from relight.reference_view import reference_view as ref
 
     view = parse_view(args.view)
     if args.size is None or args.size < 1:
         raise InputError(f"--size must be a positive integer, got {args.size}")
     t = time.perf_counter()
-    out = ref(env.pixels, brdf, np.array(view), int(args.size), truncation=float(getattr(args, "truncation", 1e-4)))
+    truncation = float(getattr(args, "truncation", DEFAULT_TRUNCATION))
+    out = ref(env.pixels, brdf, np.array(view), int(args.size), truncation=truncation)
     seconds = time.perf_counter() - t
-    meta = {"view": list(view), "truncation": getattr(args, "truncation", 1e-4), "seconds": seconds,
+    meta = {"view": list(view), "truncation": truncation, "seconds": seconds,
             "kind": "angular-domain reference (seed 000 eq. 1)"}
     write_exr(args.out, out.astype(np.float32), attributes={"relight.reference": json.dumps(meta)})
     print(f"wrote {args.out}: {out.shape[0]}x{out.shape[1]} (angular-domain reference, view {view}), {seconds:.2f} s")

@@ -45,12 +45,19 @@ def truncation_angle(lobe: RadialLobe, epsilon: float) -> float:
     return out
 
 
+#: App. D's lobe truncation by default (the fraction of the lobe's energy left out). It is relative to the lobe,
+#: not to the result: at 1e-4 a dark texel beside a light 10^4 times brighter lost up to 2 % (measured against
+#: Mitsuba 3 for a microfacet lobe); 1e-8 agrees with Mitsuba to 0.07 % and costs 2-20 % more than 1e-4 (64-row
+#: map, 32-row output, Phong s = 8 and 64; microfacet sigma 0.3 and Beckmann alpha 0.2 for a view).
+DEFAULT_TRUNCATION = 1e-8
+
+
 def reference_radial(
     pixels: NDArray[np.floating],
     lobe: RadialLobe,
     size: int,
     *,
-    epsilon: float = 1e-4,
+    epsilon: float = DEFAULT_TRUNCATION,
     chunk_elems: int = 4_000_000,
 ) -> FloatArray:
     """Brute-force ``B(C)`` on an S x 2S lat-long grid of centres C (same layout as the input), (S, 2S, C)."""

@@ -37,11 +37,11 @@ from numpy.typing import NDArray
 from relight.brdf.base import IsotropicBRDF, Lobe, RadialLobe
 from relight.conventions import check_latlong_shape, latlong_dirs, pixel_solid_angles, ring_thetas
 from relight.errors import InputError
+from relight.reference import DEFAULT_TRUNCATION
 from relight.shrm import brdf_lobes, halfway_normals, lobe_centres, reflect_dirs, sphere_geometry, unit_view
 
 FloatArray = NDArray[np.float64]
 
-DEFAULT_TRUNCATION = 1e-4
 
 
 #: theta_o bins of the truncation table (module docstring).
