@@ -198,7 +198,39 @@ def test_scene_objects_in_the_3d_view(page: Any, tmp_path: Any, viewer_server: A
                   " v.render(); }")
     screenshot(page, "viewer-scene-3d")
 
+    # the panel's example: a sphere and a mesh (the bunny, scaled to its bounding radius)
+    page.click("#scene-example")
+    page.click("#scene-run")
+    page.wait_for_function("window.relight.scene?.scene?.name === 'two-objects' && window.relight.sceneShown"
+                           " === window.relight.scene.id || document.getElementById('scene-error').textContent",
+                           timeout=120_000)
+    assert page.inner_text("#scene-error") == ""
+    shown = page.evaluate("""() => {
+        const v = window.relight.viewer;
+        v.setFixedSize([128, 128]);
+        v.setOptions({background: false});
+        v.render();
+        const px = v.readPixels().data;
+        const litNear = (o) => {  // lit pixels within 3 pixels of the projected centre
+            const c = o.center.clone().project(v.camera);
+            const x = Math.floor((c.x + 1) * 64);
+            const y = Math.floor((1 - c.y) * 64);
+            let n = 0;
+            for (let dy = -3; dy <= 3; dy += 1) {
+                for (let dx = -3; dx <= 3; dx += 1) {
+                    const i = 4 * ((y + dy) * 128 + (x + dx));
+                    n += (px[i] + px[i + 1] + px[i + 2]) > 0 ? 1 : 0;
+                }
+            }
+            return n;
+        };
+        return v.sceneObjects.map((o) => [o.name, o.shape, o.radius, o.mesh.visible, litNear(o)]);
+    }""")
+    assert [o[:4] for o in shown] == [["ball", "sphere", 1, True], ["bunny", "bunny", 0.5, True]], shown
+    assert all(o[4] >= 25 for o in shown), f"objects must be drawn where they are: {shown}"
+
     # back to the current material on one object
+    page.evaluate("() => { const v = window.relight.viewer; v.setFixedSize(null); v.setOptions({background: true}); }")
     page.click("#scene-single")
     assert page.evaluate("window.relight.viewer.sceneObjects.length") == 0
     assert page.evaluate("window.relight.viewer.objectName") == "sphere"
