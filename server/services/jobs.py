@@ -27,8 +27,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
-from distributed.client import FutureCancelledError
-from distributed.scheduler import KilledWorker
 from sqlalchemy import func, select, update
 
 from client.models import (
@@ -53,17 +51,15 @@ from server.services.envmaps import EnvmapService
 from server.services.events import EventHub
 from server.services.metrics import Metrics
 from server.services.plans import PlanService, Prepared
+from server.services.runner import failure_of, run_with_resubmits
 from worker import tasks
 from worker.blobs import BlobCorrupt, BlobMissing, BlobStore
-from worker.progress import JobCancelled
 from worker.results import job_ref, load_manifest
 
 log = logging.getLogger("relight.server")
 T = TypeVar("T")
 
 ACTIVE: Final = tuple(s.value for s in ACTIVE_STATES)
-#: Resubmissions after the scheduler connection was lost, before the job is marked failed (retryable).
-MAX_RESUBMITS: Final = 5
 HEARTBEAT_S: Final = 15.0
 RENDER_TIMEOUT_S: Final = 300.0
 
@@ -267,42 +263,38 @@ class JobService:
 
     async def _watch(self, job_id: str) -> None:
         me = asyncio.current_task()
+
+        async def submit(attempt: int) -> Any:
+            row = await self._write(self._mark_submitted, job_id)
+            if row is None:
+                return None
+            self._submission[job_id] = row.submissions
+            self._publish(self._public(row))
+            payload = {
+                "job_id": job_id, "submission": row.submissions, "envmap": row.envmap_id, "brdf": row.brdf_spec,
+                "params": row.params, "max_pixels": self.settings.max_pixels,
+                "test_delay_s": self.settings.test_job_delay_s,
+            }
+            fut = self.cluster.submit(tasks.compute_shrm, str(self.store.root), payload,
+                                      key=f"relight-job-{job_id}-{row.submissions}")
+            self._futures[job_id] = fut
+            self.metrics.inc("job_submissions_total")
+            return fut
+
+        async def wanted() -> bool:  # not cancelled by a user meanwhile
+            current = await in_thread(self._row, job_id)
+            return current is not None and current.state in ACTIVE
+
         try:
-            for attempt in range(MAX_RESUBMITS + 1):
-                row = await self._write(self._mark_submitted, job_id)
-                if row is None:
-                    return
-                submission = row.submissions
-                self._submission[job_id] = submission
-                self._publish(self._public(row))
-                payload = {
-                    "job_id": job_id, "submission": submission, "envmap": row.envmap_id, "brdf": row.brdf_spec,
-                    "params": row.params, "max_pixels": self.settings.max_pixels,
-                    "test_delay_s": self.settings.test_job_delay_s,
-                }
-                fut = self.cluster.submit(tasks.compute_shrm, str(self.store.root), payload,
-                                          key=f"relight-job-{job_id}-{submission}")
-                self._futures[job_id] = fut
-                self.metrics.inc("job_submissions_total")
-                try:
-                    result = await fut
-                except FutureCancelledError as exc:
-                    current = await in_thread(self._row, job_id)
-                    if current is None or current.state not in ACTIVE:
-                        return  # cancelled by a user
-                    log.warning("job %s: Dask future lost (%s); resubmitting (attempt %d)", job_id, exc.reason,
-                                attempt + 1)
-                    await asyncio.sleep(min(2.0**attempt, 10.0))
-                    continue
-                except asyncio.CancelledError:
-                    raise
-                except Exception as exc:  # noqa: BLE001 - every task failure is recorded on the job
-                    await self._fail(job_id, submission, exc)
-                    return
-                await self._succeed(job_id, submission, result)
+            try:
+                done, result = await run_with_resubmits(submit, wanted, name=f"job {job_id}")
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - every task failure is recorded on the job
+                await self._fail(job_id, self._submission.get(job_id, 0), exc)
                 return
-            await self._fail(job_id, self._submission.get(job_id, 0),
-                             RuntimeError(f"lost the Dask scheduler {MAX_RESUBMITS + 1} times"))
+            if done:
+                await self._succeed(job_id, self._submission[job_id], result)
         finally:
             self._futures.pop(job_id, None)
             if self._watchers.get(job_id) is me:
@@ -347,15 +339,7 @@ class JobService:
         self._publish(self._public(row))
 
     async def _fail(self, job_id: str, submission: int, exc: BaseException) -> None:
-        if isinstance(exc, InputError):
-            reason, retryable = str(exc), False
-        elif isinstance(exc, KilledWorker):
-            reason, retryable = (f"the worker process running the job died repeatedly ({exc}); the job may exceed "
-                                 "the worker memory limit"), True
-        elif isinstance(exc, JobCancelled):
-            reason, retryable = str(exc), True
-        else:
-            reason, retryable = f"{type(exc).__name__}: {exc}", True
+        reason, retryable = failure_of(exc)
         log.warning("job %s failed: %s", job_id, reason)
 
         def do() -> Job | None:

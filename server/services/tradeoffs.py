@@ -2,10 +2,12 @@
 cost model behind ``/plan``.
 
 * **Analysis jobs.** A tradeoff or a scene is identified by the SHA-256 of its canonical request (with
-  ``relight.ALGORITHM_VERSION``); its row in the ``analyses`` table is the source of truth. Submitting starts one
-  Dask task (:mod:`worker.analysis`) and a watcher that stores the result (small JSON) in the row; identical
-  requests share the row (200 with the result once it exists). Rows left queued or running by a previous server
-  process are submitted again when the service first starts in a process (at-least-once).
+  ``relight.ALGORITHM_VERSION`` and the kind's result version); its row in the ``analyses`` table is the source of
+  truth. Submitting starts one Dask task (:mod:`worker.analysis`) and a watcher that stores the result (small
+  JSON) in the row; a lost future is submitted again and failures are classified as for SHRM jobs
+  (:mod:`server.services.runner`). Identical requests share the row (200 with the result once it exists). Rows
+  left queued or running by a previous server process are submitted again when the service first starts in a
+  process (at-least-once).
 * **Cost model.** ``/plan`` predicts seconds with ``relight.costmodel``: the calibration cached for this machine if
   one exists, else the built-in constants while a calibration runs once in a worker (:func:`plan_seconds`).
 """
@@ -26,7 +28,6 @@ from sqlalchemy.orm import Mapped, mapped_column
 
 import relight
 from client.models import JobState, TradeoffCreate, TradeoffPublic
-from relight.errors import InputError
 from server.cluster import Cluster
 from server.config import Settings
 from server.db import Base, Database, utcnow
@@ -34,6 +35,7 @@ from server.problems import NotFound, TooManyJobs, Unprocessable
 from server.services.base import aware, content_id, in_thread, utc
 from server.services.brdfs import BrdfService
 from server.services.envmaps import EnvmapService
+from server.services.runner import failure_of, run_with_resubmits
 from worker.blobs import BlobStore
 
 log = logging.getLogger("relight.server")
@@ -140,29 +142,35 @@ class AnalysisService(ABC):
 
     async def _watch(self, job_id: str) -> None:
         me = asyncio.current_task()
-        try:
+
+        async def submit(attempt: int) -> Any:
             row = await in_thread(self._row, job_id)
-            if row is None:
-                return
+            if row is None or row.state not in ACTIVE:
+                return None
             payload = {**row.request, "max_pixels": self.settings.max_pixels}
             await in_thread(functools.partial(self._set, job_id, state=JobState.running.value))
-            fut = self.cluster.submit(self.task(), str(self.store.root), payload, key=f"relight-{self.kind}-{job_id}")
+            return self.cluster.submit(self.task(), str(self.store.root), payload,
+                                       key=f"relight-{self.kind}-{job_id}-{attempt}")
+
+        async def wanted() -> bool:
+            row = await in_thread(self._row, job_id)
+            return row is not None and row.state in ACTIVE
+
+        try:
             try:
-                result = await fut
+                done, result = await run_with_resubmits(submit, wanted, name=f"{self.kind} {job_id}")
             except asyncio.CancelledError:
                 raise
-            except InputError as exc:
+            except Exception as exc:  # noqa: BLE001 - every failure is recorded; retryable ones may be resubmitted
+                reason, retryable = failure_of(exc)
+                log.warning("%s %s failed: %s", self.kind, job_id, reason)
                 await in_thread(functools.partial(self._set, job_id, state=JobState.failed.value,
-                                                  failure_reason=str(exc), retryable=0, finished_at=utcnow()))
-                return
-            except Exception as exc:  # noqa: BLE001 - every other failure is recorded, and may be retried
-                log.warning("%s %s failed: %s", self.kind, job_id, exc)
-                await in_thread(functools.partial(self._set, job_id, state=JobState.failed.value,
-                                                  failure_reason=f"{type(exc).__name__}: {exc}", retryable=1,
+                                                  failure_reason=reason, retryable=int(retryable),
                                                   finished_at=utcnow()))
                 return
-            await in_thread(functools.partial(self._set, job_id, state=JobState.succeeded.value, result=result,
-                                              failure_reason=None, finished_at=utcnow()))
+            if done:
+                await in_thread(functools.partial(self._set, job_id, state=JobState.succeeded.value, result=result,
+                                                  failure_reason=None, finished_at=utcnow()))
         finally:
             if self._watchers.get(job_id) is me:
                 del self._watchers[job_id]
