@@ -15,6 +15,12 @@ that interleave the configurations (ABAB..., so drift hits all alike). Paths:
   <= 2x the baseline for P = 3.
 * ``near`` — eq. 6 per pixel ((P + 1)^2 lookups and the harmonics per pixel), for reference.
 
+Scenes: n = 1, 2, 4, 8 spheres (radius 1, on an arc 6 units from the viewer), each with its own P = 3 SHRM
+(``ShrmViewer.setSceneObjects``; separate textures per object) and the distant viewer, so every frame computes n
+view maps (eq. 12, one per object, for the direction from its centre to the camera). The field of view is the
+same for every n (the 8-object arc's), so each object covers the same pixels. Ratio = frame time / the one-object
+scene's, same run: what each further object costs.
+
 ``python3 bench/viewer.py [--quick]`` prints a Markdown table and writes ``bench/results/viewer.{md,json}``.
 """
 
@@ -49,6 +55,8 @@ FLAGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsa
 ORDERS = (0, 2, 3, 5)
 WIDTH, HEIGHT = 1280, 720
 GOAL_P, GOAL_RATIO = 3, 2.0
+SCENE_SIZES = (1, 2, 4, 8)
+SCENE_P = 3
 
 
 def serve_viewer() -> tuple[str, Any]:
@@ -117,6 +125,24 @@ MEASURE = """([manifest, b64, shading, mode, frames]) => {
 }"""
 
 
+MEASURE_SCENE = """([manifest, b64, n, frames]) => {
+  const v = window.relight.viewer;
+  const bin = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+  const items = [];
+  for (let k = 0; k < n; k += 1) {
+    const a = (k - (n - 1) / 2) * 0.2;
+    items.push({ name: `o${k}`, center: [6 * Math.sin(a), 0, -6 * Math.cos(a)], radius: 1, mode: 'distant',
+      geometry: 'sphere', manifest, buffer: bin.buffer.slice(0) });
+  }
+  v.setSceneObjects(items);
+  v.sceneHalfAngles = [0.9, 0.35]; // the same field of view for every n: each object covers the same pixels
+  v.setOptions({ shading: 'shrm', mode: 'distant' });
+  const res = v.benchmark(frames, { orbit: true, step: 0.01 });
+  v.clearScene();
+  return res;
+}"""
+
+
 def run(quick: bool) -> dict[str, Any]:
     from playwright.sync_api import sync_playwright
 
@@ -149,6 +175,13 @@ def run(quick: bool) -> dict[str, Any]:
                         res = page.evaluate(MEASURE, [manifest, b64, shading, mode, frames])
                         results.setdefault(f"{obj}|{name}", []).append(res["median"])
                     print(f"  {obj}: round {r + 1}/{rounds} done", file=sys.stderr)
+            page.evaluate(SETUP, [WIDTH, HEIGHT, env_b64, 2 * rows, False, "sphere"])
+            manifest, b64 = payloads[SCENE_P]
+            for r in range(rounds):
+                for n in SCENE_SIZES:
+                    res = page.evaluate(MEASURE_SCENE, [manifest, b64, n, frames])
+                    results.setdefault(f"scene|{n} object{'s' if n > 1 else ''}", []).append(res["median"])
+                print(f"  scenes: round {r + 1}/{rounds} done", file=sys.stderr)
             ctx.close()
     finally:
         server.should_exit = True
@@ -157,7 +190,7 @@ def run(quick: bool) -> dict[str, Any]:
         obj, name = key.split("|")
         table.setdefault(obj, {})[name] = {"median_ms": statistics.median(values), "rounds_ms": values}
     for rows_ in table.values():
-        base = rows_["plain"]["median_ms"]
+        base = rows_["plain"]["median_ms"] if "plain" in rows_ else rows_["1 object"]["median_ms"]
         for row in rows_.values():
             row["ratio"] = row["median_ms"] / base
     goal = table["sphere"][f"P={GOAL_P} distant"]["ratio"]
@@ -176,7 +209,9 @@ def markdown(res: dict[str, Any]) -> str:
              f"rounds x {res['frames_per_round']} frames, camera turning every frame; ratio = frame time / plain "
              "environment reflection, same run. Background off (object shading only).", ""]
     for obj, rows in res["results"].items():
-        lines += [f"## {obj}", "", "| configuration | frame time (ms) | ratio to plain |", "|---|---:|---:|"]
+        base = "plain" if obj != "scene" else "1 object"
+        lines += [f"## {obj}" + (f" (P = {SCENE_P} SHRM per object, distant viewer)" if obj == "scene" else ""), "",
+                  f"| configuration | frame time (ms) | ratio to {base} |", "|---|---:|---:|"]
         for name, row in rows.items():
             lines.append(f"| {name} | {row['median_ms']:.1f} | {row['ratio']:.2f} |")
         lines.append("")

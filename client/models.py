@@ -268,8 +268,11 @@ class TradeoffPublic(Public):
     brdf_spec: dict[str, Any]
     params: dict[str, Any]
     points: list[dict[str, Any]] | None = Field(None, description="method, orders, predicted_error, measured_error, "
+                                                "mitsuba_error (null without a Mitsuba 3 twin), image_error, "
                                                 "predicted_seconds, measured_seconds, pareto, ... per point")
-    meta: dict[str, Any] | None = None
+    meta: dict[str, Any] | None = Field(None, description="what the sweep ran on; mitsuba: the Mitsuba 3 "
+                                        "comparison's settings, noise floor and reference_error, or computed "
+                                        "false and the reason")
     created_at: datetime
     finished_at: datetime | None = None
     links: dict[str, str] = {}

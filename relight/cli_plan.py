@@ -1,8 +1,9 @@
 """Planning commands of the ``relight`` CLI: the accuracy–time explorer, the scene planner and the cost model.
 
     relight tradeoff ENVMAP --brdf SPEC --out DIR [--rows H] [--size S] [--view X,Y,Z] [--epsilons E,...]
-                     [--truncations T,...] [--title TEXT]
-        DIR/tradeoff.json (the points), DIR/tradeoff_meta.json and three PNG plots (``relight.tradeoff``)
+                     [--truncations T,...] [--mitsuba {auto,on,off}] [--title TEXT]
+        DIR/tradeoff.json (the points), DIR/tradeoff_meta.json and three PNG plots (``relight.tradeoff``); with a
+        Mitsuba 3 twin of the material each point's error against Mitsuba too (auto; on: an error without one)
     relight scene plan SCENE.json [--json]             what each object needs, what is skipped and why
     relight scene run SCENE.json --out DIR [--preview N] [--json]
     relight costmodel [--recalibrate] [--json]         the calibrated constants (``relight.costmodel``)
@@ -25,6 +26,8 @@ from relight.errors import InputError
 #: Input rows the tradeoff works on by default (area-averaged, ``relight.envmap.resample_latlong``): its reference
 #: is the untruncated angular method, O(S_L^2 S_B^2).
 DEFAULT_TRADEOFF_ROWS = 64
+#: ``--mitsuba`` to ``relight.tradeoff.sweep(mitsuba=...)``: auto measures when the material has a Mitsuba 3 twin.
+MITSUBA_MODES: dict[str, bool | None] = {"auto": None, "on": True, "off": False}
 
 
 def _floats(text: str | None, what: str) -> list[float] | None:
@@ -68,7 +71,7 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     trunc = _floats(args.truncations, "truncations")
     if trunc is not None:
         kwargs["truncations"] = trunc
-    res = sweep(px, brdf, epsilons=eps, size=args.size, **kwargs)
+    res = sweep(px, brdf, epsilons=eps, size=args.size, mitsuba=MITSUBA_MODES[args.mitsuba], **kwargs)
     res.meta["input"].update({"path": str(args.envmap), "original_height": h_in})
     paths = write_tradeoff(res, args.out, title=args.title)
     lo, hi = res.meta["time_ratio_range"] or (math.nan, math.nan)
@@ -76,6 +79,12 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     print(f"wrote {', '.join(sorted(p.name for p in paths.values()))} to {args.out}: {len(res.points)} points "
           f"({px.shape[0]} x {px.shape[1]} input, {res.meta['output']['height']} x {res.meta['output']['width']} "
           f"output), {len(front)} on the overall Pareto front; predicted/measured time {lo:.2f}..{hi:.2f}")
+    mits = res.meta["mitsuba"]
+    if mits["computed"]:
+        print(f"against Mitsuba 3 ({mits['variant']}, {mits['spp']} spp, {mits['seconds']:.1f} s): noise floor "
+              f"{mits['noise']:.2g}, angular reference {mits['reference_error']:.2g}")
+    else:
+        print(f"not measured against Mitsuba 3: {mits['reason']}")
     return 0
 
 
@@ -141,9 +150,13 @@ def register(subparsers: Any) -> None:
     tr.add_argument("--rows", type=int, default=DEFAULT_TRADEOFF_ROWS,
                     help=f"area-average the input to this many rows first (default {DEFAULT_TRADEOFF_ROWS})")
     tr.add_argument("--size", type=int, help="output rows S of every map (default: rows / 2, at most 64)")
-    tr.add_argument("--view", help="X,Y,Z view direction for view-dependent BRDFs (default 0,0.5,0.866)")
+    tr.add_argument("--view", help="X,Y,Z view direction for view-dependent BRDFs and the Mitsuba sphere "
+                                   "(default 0,0.5,0.866)")
     tr.add_argument("--epsilons", help="comma-separated tolerances of the frequency method")
     tr.add_argument("--truncations", help="comma-separated lobe truncations of the angular method")
+    tr.add_argument("--mitsuba", choices=tuple(MITSUBA_MODES), default="auto",
+                    help="also measure every point against a Mitsuba 3 render when the material has a twin "
+                         "(auto, the default); on: fail without one; off: never")
     tr.add_argument("--title", help="plot title (default: the BRDF kind)")
     tr.set_defaults(func=cmd_tradeoff)
 

@@ -20,10 +20,39 @@ are repeated and the fastest kept). ``pareto`` marks the points
 no other point of the same method beats in both measured error and measured time; ``pareto_overall`` the same over
 both methods.
 
-Measured error against an independent renderer (Mitsuba 3) is not part of the sweep: its Monte Carlo noise (2.5–6 %
-per pixel at 1024 spp, FACTS.md) is above most of the errors measured here, and a render costs more than the whole
-sweep; the angular reference is exact for the pixelised environment and is itself checked against Mitsuba by the
-oracle tests.
+**Against Mitsuba 3.** When the material has an exact Mitsuba 3 twin (``relight.mitsuba_twin.twin``:
+Torrance–Sparrow with ``fresnel="none"``, Beckmann or GGX, and Lambert), Mitsuba is installed and the map can be
+shown to it exactly (H even), every point also records ``mitsuba_error``: its error against an independent renderer.
+Mitsuba renders once per sweep (the image does not depend on the point): a unit sphere under the map, seen by an
+orthographic camera along the sweep's view (``view``, also for view-independent maps), direct light only,
+:class:`~relight.mitsuba_twin.TwinSettings` (64 x 64 pixels, 8192 samples per pixel). Each point's output map
+becomes the same image (per sub-pixel, 4 x 4 per pixel: N from the sphere, ``R = 2 (N.V) N - V``, the map looked up
+bilinearly at its centre direction: R for view maps and R-centred lobes, N for Lambert's map), and the two images
+are compared on 4 x 4-pixel block means of Rec. 709 luminance over the blocks lying entirely within image radius
+0.8 (N within 53 degrees of V; grazing views are excluded, where both the SHRM's orders and the pixel footprints
+diverge): ``mitsuba_error`` is the relative RMS over those blocks. ``image_error`` is the same metric against the
+angular reference's image instead of Mitsuba's, so that it can be compared with ``mitsuba_error`` on equal terms;
+the sphere-wide ``measured_error`` is not comparable with either: it also counts grazing views, where an SHRM's
+error is largest.
+
+``meta["mitsuba"]`` records the settings, the render's seconds (not part of any point's), and two floors:
+
+* ``noise``: the relative RMS of the blocks' Monte Carlo standard deviations (estimated by Mitsuba's ``moment``
+  integrator from the render's own samples): the expected ``mitsuba_error`` of a perfect map. It is 1.5–5.5e-3 on
+  the five sample maps (64 rows; Beckmann 0.05 and 0.2, GGX 0.2, Lambert) at the default settings, for renders of
+  2–6 s on a 2-core machine (``llvm_ad_rgb``), so ``mitsuba_error`` resolves errors of about 1e-2 and above, and a
+  finer point's ``mitsuba_error`` stops falling at the floor; below it only the angular reference measures. One
+  render's actual noise scatters widely about the floor (0.5 to 2.2 times it over 12 seeds on the studio map): the
+  few brightest blocks dominate the relative RMS and their Monte Carlo estimates are heavy-tailed.
+* ``reference_error``: the angular reference itself turned into the same image, against Mitsuba. It is the
+  consistency check of the whole comparison (camera, map orientation, BSDF, units) and the floor below which
+  ``mitsuba_error`` cannot separate points: the noise, plus what every map shares, the bilinear lookup of the
+  ``S x 2S`` output grid and the reference's pixel-centre sum over the map (Mitsuba integrates the pixels' areas).
+  With S equal to the input rows it is at the noise level (``tests/test_tradeoff_mitsuba.py``); at a coarser grid
+  the interpolation shows (2.6 % for Beckmann alpha = 0.2 on the studio map at 32 rows and S = 16).
+
+Otherwise ``meta["mitsuba"]`` is ``{"computed": False, "reason": ...}`` (no twin, Mitsuba not installed, an odd
+map height, a failed render, or ``mitsuba=False``) and the points carry ``mitsuba_error`` and ``image_error`` None.
 
 :func:`window_tradeoff` reports what optional windowing (``prefilter_radial(window=...)``) costs in accuracy and
 gains in ringing (the negative lobe of the band-limited kernel, Gibbs overshoot).
@@ -45,9 +74,10 @@ from numpy.typing import NDArray
 from relight import __version__, costmodel
 from relight.brdf.base import Lobe, RadialLobe
 from relight.conventions import luminance
-from relight.errors import InputError
+from relight.errors import InputError, RelightError
 from relight.jsonable import jsonable as _jsonable
 from relight.metrics import relative_rms
+from relight.mitsuba_twin import TwinSettings
 
 FloatArray = NDArray[np.float64]
 Progress = Callable[[str, float], None]
@@ -134,7 +164,7 @@ def default_size(height: int) -> int:
 
 def _frequency_radial(
     px: FloatArray, lobe: RadialLobe, eps: float, size: int, ref: FloatArray, cal: costmodel.Calibration
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], FloatArray]:
     from relight.prefilter import prefilter_radial
 
     h, w = px.shape[:2]
@@ -154,12 +184,12 @@ def _frequency_radial(
         "measured_seconds": seconds,
         "predicted_stages": pred.stages,
         "measured_stages": costmodel.report_stages(res.report["timings"]),
-    }
+    }, np.asarray(res.map, dtype=np.float64)
 
 
 def _frequency_shrm(
     px: FloatArray, brdf: Any, eps: float, size: int, view: FloatArray, ref: FloatArray, cal: costmodel.Calibration
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], FloatArray]:
     from relight.brdf import lpq
     from relight.shrm import create_shrm, reflect
 
@@ -198,13 +228,13 @@ def _frequency_shrm(
         "measured_seconds": t_create + t_view,
         "predicted_stages": pred.stages,
         "measured_stages": measured_stages,
-    }
+    }, np.asarray(image, dtype=np.float64)
 
 
 def _angular(
     px: FloatArray, brdf: Any, truncation: float, size: int, view: FloatArray | None, ref: FloatArray,
     cal: costmodel.Calibration,
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], FloatArray]:
     h = px.shape[0]
     if view is None:
         from relight.reference import reference_radial, truncation_angle
@@ -236,7 +266,7 @@ def _angular(
         "measured_seconds": seconds,
         "predicted_stages": pred.stages,
         "measured_stages": {"angular_view" if view is not None else "angular": seconds},
-    }
+    }, np.asarray(out, dtype=np.float64)
 
 
 def _warm_up(brdf: Any, view: FloatArray | None) -> None:
@@ -258,6 +288,73 @@ def _warm_up(brdf: Any, view: FloatArray | None) -> None:
         lpq.clear_cache()
 
 
+def _mitsuba_plan(brdf: Any, px: FloatArray, mitsuba: bool | None) -> tuple[dict[str, Any] | None, str | None]:
+    """The Mitsuba twin to render against, or None and why not; ``mitsuba=True`` turns every why-not into an error
+    (InputError for the material or the map, RelightError when Mitsuba cannot run here)."""
+    from relight import mitsuba_twin
+
+    if mitsuba is False:
+        return None, "switched off (mitsuba=False, --mitsuba off)"
+    bsdf = mitsuba_twin.twin(brdf)
+    why: str | None = None
+    if bsdf is None:
+        kind = getattr(brdf, "kind", type(brdf).__name__)
+        why = (f"{kind} has no Mitsuba 3 twin (relight.mitsuba_twin.twin: Torrance-Sparrow with fresnel='none' and "
+               "Lambert only)")
+    else:
+        why = mitsuba_twin.check_bitmap_shape(px.shape)
+    if why is not None and mitsuba:
+        raise InputError(f"mitsuba=True (--mitsuba on): {why}")
+    if why is None:
+        why = mitsuba_twin.unavailable_reason()
+        if why is not None and mitsuba:
+            raise RelightError(f"mitsuba=True (--mitsuba on): {why}")
+    return (bsdf, None) if why is None else (None, why)
+
+
+def _mitsuba_errors(
+    px: FloatArray, brdf: Any, bsdf: dict[str, Any], view: FloatArray, ref: FloatArray, maps: list[FloatArray],
+    settings: TwinSettings,
+) -> tuple[list[tuple[float, float]], dict[str, Any]]:
+    """Each map's relative RMS against Mitsuba's sphere image (one render) and against the reference's, and the meta
+    entry (module docstring)."""
+    from relight import mitsuba_twin
+
+    center = str(brdf.center) if is_reflection_map(brdf) else "R"  # view maps are indexed by R (reflect, reference)
+    t0 = time.perf_counter()
+    cmp = mitsuba_twin.compare_sphere(px, bsdf, view, settings)
+    render_seconds = time.perf_counter() - t0
+    ref_blocks = cmp.blocks(ref, center)
+    errors = []
+    for m in maps:
+        y = cmp.blocks(m, center)
+        errors.append((mitsuba_twin.block_rms(y, cmp.truth), mitsuba_twin.block_rms(y, ref_blocks)))
+    meta = {
+        "computed": True,
+        "variant": cmp.render.variant,
+        "bsdf": bsdf,
+        "view": [float(x) for x in view],
+        "image": {"height": settings.size, "width": settings.size},
+        "spp": settings.spp,
+        "seed": settings.seed,
+        "block": settings.block,
+        "radius": settings.radius,
+        "max_angle_nv_deg": math.degrees(math.asin(settings.radius)),
+        "blocks": int(cmp.truth.size),
+        "supersample": settings.supersample,
+        "texels_per_pixel": cmp.texels,
+        "map_center": center,
+        "seconds": render_seconds,
+        "noise": cmp.noise,
+        "reference_error": mitsuba_twin.block_rms(ref_blocks, cmp.truth),
+        "metric": (f"relative RMS over the {cmp.truth.size} blocks of {settings.block} x {settings.block} pixels lying "
+                   f"within image radius {settings.radius:g} of a {settings.size} x {settings.size} orthographic "
+                   "sphere image, Rec. 709 luminance; relight's map looked up bilinearly at its centre direction, "
+                   f"{settings.supersample} x {settings.supersample} samples per pixel"),
+    }
+    return errors, meta
+
+
 def sweep(
     pixels: NDArray[np.floating],
     brdf: Any,
@@ -268,13 +365,19 @@ def sweep(
     view: Sequence[float] = DEFAULT_VIEW,
     calibration: costmodel.Calibration | None = None,
     progress: Progress | None = None,
+    mitsuba: bool | None = None,
+    mitsuba_settings: TwinSettings | None = None,
 ) -> Tradeoff:
     """Run both methods over their accuracy settings on one ``S x 2S`` grid (module docstring).
 
     ``epsilons`` default to :data:`DEFAULT_EPSILONS` (only radially symmetric lobes) or
     :data:`DEFAULT_SHRM_EPSILONS`.
-    ``view`` is used only for view-dependent materials. ``calibration`` defaults to
-    :func:`relight.costmodel.load_calibration` (calibrating on first use).
+    ``view`` is the view of view-dependent materials, and the Mitsuba camera's for every material.
+    ``calibration`` defaults to :func:`relight.costmodel.load_calibration` (calibrating on first use).
+    ``mitsuba``: None (default) measures every point against Mitsuba 3 too when the material has a twin
+    (``relight.mitsuba_twin.twin``), the map's shape allows an exact Mitsuba bitmap (H even) and Mitsuba runs here,
+    and records why not otherwise (also when the render fails); True raises instead of skipping; False skips.
+    ``mitsuba_settings`` defaults to :class:`relight.mitsuba_twin.TwinSettings` ``()``.
     """
     px = _check_pixels(pixels)
     h = px.shape[0]
@@ -297,15 +400,15 @@ def sweep(
     if not isinstance(brdf, Lobe) and not hasattr(brdf, "lobes"):
         raise InputError(f"not a BRDF: {type(brdf).__name__}")
     radial = is_reflection_map(brdf)
-    v: FloatArray | None = None
-    if not radial:
-        from relight.shrm import unit_view
+    twin_bsdf, no_twin = _mitsuba_plan(brdf, px, mitsuba)
+    from relight.shrm import unit_view
 
-        v = unit_view(view)
+    camera = unit_view(view) if not radial or twin_bsdf is not None else None
+    v: FloatArray | None = None if radial else camera
     cal = calibration if calibration is not None else costmodel.load_calibration()
     report = progress or (lambda stage, fraction: None)
     _warm_up(brdf, v)
-    n_total = len(epsilons) + len(truncations) + 1
+    n_total = len(epsilons) + len(truncations) + 1 + (twin_bsdf is not None)
 
     report("reference", 0.0)
     if v is None:
@@ -321,19 +424,40 @@ def sweep(
         raise InputError("the reference is zero everywhere (a black environment): relative errors are undefined")
 
     points: list[dict[str, Any]] = []
+    maps: list[FloatArray] = []
     done = 1
     for eps in sorted({float(e) for e in epsilons}, reverse=True):
         report("frequency", done / n_total)
         if v is None:
             assert isinstance(brdf, RadialLobe)
-            points.append(_frequency_radial(px, brdf, eps, s, ref, cal))
+            point, out = _frequency_radial(px, brdf, eps, s, ref, cal)
         else:
-            points.append(_frequency_shrm(px, brdf, eps, s, v, ref, cal))
+            point, out = _frequency_shrm(px, brdf, eps, s, v, ref, cal)
+        points.append(point)
+        maps.append(out)
         done += 1
     for tr in sorted({float(t) for t in truncations}, reverse=True):
         report("angular", done / n_total)
-        points.append(_angular(px, brdf, tr, s, v, ref, cal))
+        point, out = _angular(px, brdf, tr, s, v, ref, cal)
+        points.append(point)
+        maps.append(out)
         done += 1
+
+    # after every timed point: the render is not part of any point's seconds
+    errors: list[tuple[float, float]] = []
+    mitsuba_meta: dict[str, Any] = {"computed": False, "reason": no_twin}
+    if twin_bsdf is not None and camera is not None:
+        report("mitsuba", done / n_total)
+        try:
+            errors, mitsuba_meta = _mitsuba_errors(px, brdf, twin_bsdf, camera, ref, maps,
+                                                   mitsuba_settings or TwinSettings())
+        except (RelightError, RuntimeError) as exc:  # Mitsuba's own errors are RuntimeErrors
+            if mitsuba:
+                raise
+            mitsuba_meta = {"computed": False, "reason": f"the Mitsuba 3 render failed: {exc}"}
+    for i, p in enumerate(points):
+        p["mitsuba_error"] = _finite_or_none(errors[i][0]) if errors else None
+        p["image_error"] = _finite_or_none(errors[i][1]) if errors else None
 
     for method in ("frequency", "angular"):
         idx = [i for i, p in enumerate(points) if p["method"] == method]
@@ -358,7 +482,7 @@ def sweep(
         "calibration": {"key": cal.key, "calibrated": cal.calibrated, "created": cal.created,
                         "constants": dict(cal.constants)},
         "time_ratio_range": [min(ratios), max(ratios)] if ratios else None,
-        "mitsuba": "omitted: its Monte Carlo noise (2.5-6 % per pixel at 1024 spp) exceeds most errors measured here",
+        "mitsuba": mitsuba_meta,
     }
     report("done", 1.0)
     return Tradeoff(points=points, meta=meta)
@@ -429,7 +553,9 @@ _STYLE = {"frequency": ("tab:blue", "o"), "angular": ("tab:orange", "s")}
 
 def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> dict[str, Path]:
     """PNG plots (matplotlib, Agg): error vs time with both Pareto fronts, predicted vs measured error, predicted
-    vs measured time."""
+    vs measured time. When the sweep measured against Mitsuba 3 (``meta["mitsuba"]["computed"]``), the frequency
+    points' ``mitsuba_error`` appear as hollow markers of the same colour in the first two, with the noise floor
+    (dotted) and the reference's own error against Mitsuba (dash-dotted) in the first."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -456,6 +582,17 @@ def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> 
                    if method == "frequency" else f"t={p['setting']['truncation']:g}")
             ax.annotate(lab, (p["measured_seconds"], max(p["measured_error"], 1e-12)), fontsize=6,
                         xytext=(3, 3), textcoords="offset points")
+    mits = result.meta.get("mitsuba") or {}
+    if mits.get("computed"):
+        colour, marker = _STYLE["frequency"]
+        mp = [p for p in pts if p["method"] == "frequency" and p.get("mitsuba_error") is not None]
+        if mp:
+            ax.scatter([p["measured_seconds"] for p in mp], [max(float(p["mitsuba_error"]), 1e-12) for p in mp],
+                       facecolors="none", edgecolors=colour, marker=marker, label="frequency vs Mitsuba 3", zorder=3)
+        ax.axhline(max(float(mits["noise"]), 1e-12), color="0.35", ls=":", lw=1.0,
+                   label="Mitsuba 3 noise floor")
+        ax.axhline(max(float(mits["reference_error"]), 1e-12), color="0.35", ls="-.", lw=0.8,
+                   label="angular reference vs Mitsuba 3")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("measured seconds")
@@ -489,6 +626,12 @@ def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> 
                     ax.scatter([u for u, _ in b], [w for _, w in b], facecolors="none", edgecolors=colour,
                                marker="^", label="frequency, App. B bound", zorder=3)
                     vals += [u for u, _ in b]
+                m = [(max(float(p[pred_key]), 1e-12), max(float(p["mitsuba_error"]), 1e-12)) for p in mp
+                     if p.get("mitsuba_error") is not None]
+                if m:
+                    ax.scatter([u for u, _ in m], [w for _, w in m], facecolors="none", edgecolors=colour,
+                               marker=marker, label="frequency vs Mitsuba 3 (sphere image)", zorder=3)
+                    vals += [w for _, w in m]
         if vals:
             lo, hi = min(vals) / 2, max(vals) * 2
             ax.plot([lo, hi], [lo, hi], "k-", lw=0.8, label="predicted = measured")

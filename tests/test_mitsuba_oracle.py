@@ -1,16 +1,16 @@
 """Mitsuba 3 as an external oracle for relight's Torrance–Sparrow SHRM (seed 000 §4, §7.5).
 
-Scene (``tests/mitsuba_scene.py`` has the conventions): a unit sphere, Mitsuba ``roughconductor`` with
+Scene (``relight.mitsuba_twin`` has the conventions): a unit sphere, Mitsuba ``roughconductor`` with
 ``distribution="beckmann"``, ``material="none"`` (F = 1), ``alpha`` in {0.05, 0.2, 0.5}, under two sample maps
 area-averaged with ``relight.envmap.resample_latlong``; orthographic camera on +Z (V = +Z for every pixel), 64 x 64
 pixels, 4096 samples per pixel, direct light only. relight renders the same sphere with
 ``create_shrm(..., TorranceSparrow(alpha, "beckmann", fresnel="none"))`` and ``render_sphere``.
 
 Both renderers see the same radiance: the downsampled map, read as piecewise constant, goes to Mitsuba exactly
-(``mitsuba_scene.mitsuba_bitmap``, 8 texels per pixel edge) and to relight split 4 x 4 (the same function on a finer
-pixel grid, so relight's pixel-centre quadrature integrates it more accurately). The conversion is checked directly
-(the emitter's radiance equals relight's pixel values; the BSDF equals relight's model) and on an image (a small
-light's highlight lands where relight puts it; a mirrored, flipped or quarter-turned map moves it away).
+(``relight.mitsuba_twin.mitsuba_bitmap``, 8 texels per pixel edge) and to relight split 4 x 4 (the same function on a
+finer pixel grid, so relight's pixel-centre quadrature integrates it more accurately). The conversion is checked
+directly (the emitter's radiance equals relight's pixel values; the BSDF equals relight's model) and on an image (a
+small light's highlight lands where relight puts it; a mirrored, flipped or quarter-turned map moves it away).
 
 Comparison on 8 x 8 blocks of Rec. 709 luminance, over the 24 blocks whose whole area lies within image radius
 ``R_MAX`` = 0.8 (angle between N and V at most 53 degrees, so theta_o = angle(R, V) <= 106 degrees). Outside it the
@@ -72,6 +72,7 @@ from mitsuba_scene import (  # noqa: E402 - after the skip: the helpers import m
     nearest_upsample,
     render_sphere_mitsuba,
     texel_dirs,
+    twin,
 )
 
 from relight.brdf.models import TorranceSparrow  # noqa: E402
@@ -133,6 +134,14 @@ def variant() -> str:
     return choose_variant()
 
 
+def beckmann(alpha: float) -> dict[str, Any]:
+    """Mitsuba's twin of ``TorranceSparrow(alpha, "beckmann", fresnel="none")``: ``roughconductor``, Beckmann,
+    ``material="none"``."""
+    bsdf = twin(TorranceSparrow(alpha, "beckmann", fresnel="none"))
+    assert bsdf is not None and bsdf["type"] == "roughconductor" and bsdf["distribution"] == "beckmann"
+    return bsdf
+
+
 @cache
 def envmap(name: str) -> FloatArray:
     """The sample map as relight reads it (negative texels from lossy compression clamped to 0)."""
@@ -175,7 +184,7 @@ def test_emitter_radiance_is_relight_pixels(variant: str) -> None:
     phi = ((j + 0.5 + fx) / (2 * h) - 0.5) * 2.0 * np.pi
     d = np.stack([np.sin(theta) * np.cos(phi), np.cos(theta), np.sin(theta) * np.sin(phi)], axis=-1)
     np.testing.assert_allclose(emitter_radiance(bitmap, d), p[i, j], rtol=1e-6, atol=0)
-    # the texel directions of mitsuba_scene are Mitsuba's: texel centres read back their own values (to the float32
+    # the texel directions of mitsuba_twin are Mitsuba's: texel centres read back their own values (to the float32
     # rounding of Mitsuba's direction -> texel coordinates; half a texel off would mix in the neighbours)
     rnd = rng.random((h * UP_MITSUBA + 1, h * UP_MITSUBA * 2, 3)).astype(np.float32) + 0.5
     td = texel_dirs(*rnd.shape[:2])
@@ -196,7 +205,7 @@ def test_bsdf_is_torrance_sparrow(variant: str, alpha: float) -> None:
     light /= np.linalg.norm(light, axis=1, keepdims=True)
     keep = light[:, 2] > 0.02
     view, light = view[keep], light[keep]
-    got = bsdf_eval(alpha, view, light)
+    got = bsdf_eval(beckmann(alpha), view, light)[:, 1]
     want = TorranceSparrow(alpha).f(light, view, np.array([0.0, 0.0, 1.0]))[:, 0] * light[:, 2]
     big = want > 1e-3 * want.max()
     assert big.sum() > 1000
@@ -222,13 +231,13 @@ def test_small_light_highlight_position(variant: str) -> None:
     shrm = create_shrm(p, TorranceSparrow(alpha), order=24, p_order=6, size=64)
     ours = _centroid(luminance(render_sphere(shrm, VIEW, n)))
     bitmap = mitsuba_bitmap(p, UP_MITSUBA)
-    theirs = _centroid(render_sphere_mitsuba(bitmap, alpha, n, 256).luminance)
+    theirs = _centroid(render_sphere_mitsuba(bitmap, beckmann(alpha), n, 256).luminance)
     half = (light + VIEW) / np.linalg.norm(light + VIEW)
     print(f"\nhighlight centroid: relight {ours}, Mitsuba {theirs}, half-vector {half[:2]}")
     assert np.linalg.norm(theirs - ours) < 0.02, (theirs, ours)
     assert np.linalg.norm(ours - half[:2]) < 0.05, (ours, half)
     for wrong in (bitmap[:, ::-1], bitmap[::-1], np.roll(bitmap, bitmap.shape[1] // 4, axis=1)):
-        moved = _centroid(render_sphere_mitsuba(np.ascontiguousarray(wrong), alpha, n, 256).luminance)
+        moved = _centroid(render_sphere_mitsuba(np.ascontiguousarray(wrong), beckmann(alpha), n, 256).luminance)
         print(f"wrong map: Mitsuba {moved}")
         assert np.linalg.norm(moved - ours) > 0.2, moved
 
@@ -259,7 +268,7 @@ def run_case(name: str, alpha: float) -> Case:
     brdf = TorranceSparrow(alpha, "beckmann", fresnel="none")
     mask = block_far_radius(SIZE, BLOCK) <= R_MAX
 
-    render = render_sphere_mitsuba(mitsuba_bitmap(p, UP_MITSUBA), alpha, SIZE, SPP, seed=SEED)
+    render = render_sphere_mitsuba(mitsuba_bitmap(p, UP_MITSUBA), beckmann(alpha), SIZE, SPP, seed=SEED)
     seconds["mitsuba"] = render.seconds
 
     t = time.perf_counter()

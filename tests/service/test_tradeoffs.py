@@ -52,6 +52,26 @@ def test_tradeoff_job_returns_points_and_is_shared(client: RelightClient, http: 
     assert_healthy(http)
 
 
+def test_tradeoff_measures_against_mitsuba_when_the_material_has_a_twin(client: RelightClient, http: httpx.Client,
+                                                                         sample_exr: bytes) -> None:
+    """A material with a Mitsuba 3 twin (Lambert) gets each point's error against a Mitsuba render, with the
+    render's noise floor and the reference's own agreement (``relight.tradeoff``: the reference must agree with
+    Mitsuba to a few noise floors, else the comparison is wrong); one without (Phong) says why not."""
+    env = client.upload_envmap(sample_exr)
+    body = {"envmap": env.id, "brdf": "lambert:albedo=0.8", "rows": 16, "size": 16, "epsilons": [0.3, 0.01],
+            "truncations": [0.1]}
+    done = wait_done(http, f"/tradeoffs/{http.post('/tradeoffs', json=body).json()['id']}")
+    assert done["state"] == "succeeded", done
+    ms = done["meta"]["mitsuba"]
+    assert ms["computed"] is True, ms
+    assert 0 < ms["noise"] < 0.02 and ms["reference_error"] < 3 * ms["noise"] + 5e-3, ms
+    errors = [p["mitsuba_error"] for p in done["points"]]
+    assert all(isinstance(e, float) and e >= 0 for e in errors), errors
+    phong = wait_done(http, f"/tradeoffs/{http.post('/tradeoffs', json={**body, 'brdf': 'phong:s=16'}).json()['id']}")
+    assert phong["meta"]["mitsuba"]["computed"] is False and "twin" in phong["meta"]["mitsuba"]["reason"]
+    assert all(p["mitsuba_error"] is None for p in phong["points"])
+
+
 @pytest.mark.parametrize(("patch", "status", "fragment"), [
     ({"epsilons": [1.5]}, 422, "epsilons"),
     ({"truncations": [0.0]}, 422, "truncations"),

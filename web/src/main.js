@@ -261,11 +261,14 @@ function drawTradeoff() {
   }
   const stale = state.tradeoffKey !== tradeoffKey();
   // the marker is the current plan's prediction; it only belongs on the chart of the same material and map
-  const model = chartModel(t.points || [], stale ? null : state.plan, { width: 276, height: 200 });
+  const model = chartModel(t.points || [], stale ? null : state.plan, { width: 276, height: 200, meta: t.meta });
   $('tradeoff-chart').innerHTML = renderSvg(model);
   const n = (m) => (t.points || []).filter((p) => p.method === m).length;
+  const ms = t.meta?.mitsuba;
   $('tradeoff-status').textContent = `${n('frequency')} frequency, ${n('angular')} angular points on a `
     + `${t.params?.rows ?? '?'}-row map; ◆ = current choice (predicted)`
+    + (ms?.computed ? `; □ = error against Mitsuba 3 (noise floor ${Number(ms.noise).toPrecision(2)}, dotted)`
+      : (ms?.reason ? `; no Mitsuba comparison: ${ms.reason}` : ''))
     + (stale ? ' — chart is for a previous material or map: run again' : '');
 }
 

@@ -1,9 +1,11 @@
 // Accuracy against time (POST /tradeoffs, relight/tradeoff.py): a log-log chart of measured error vs measured
-// seconds for both methods, their Pareto fronts, and the current choice (the last /plan: predicted error and time).
+// seconds for both methods, their Pareto fronts, the current choice (the last /plan: predicted error and time) and,
+// when the material has a Mitsuba 3 twin, each point's error against Mitsuba (hollow squares) with the render's
+// Monte Carlo noise floor (dotted): below the floor Mitsuba cannot tell the points apart.
 // Pure functions (no DOM): the page inserts the SVG string; web/test/tradeoff.test.js tests them under node.
 
 export const METHODS = ['frequency', 'angular'];
-export const COLORS = { frequency: '#6cb4ff', angular: '#ffb347', current: '#ff5c8a' };
+export const COLORS = { frequency: '#6cb4ff', angular: '#ffb347', current: '#ff5c8a', mitsuba: '#e0e0e0' };
 
 /** A log10 scale from [lo, hi] (positive) onto [a, b] (pixels; b < a flips the axis). */
 export function logScale([lo, hi], [a, b]) {
@@ -88,15 +90,29 @@ export function placeMarker(choice, x, y) {
   return { x: cx, y: cy, clamped: cx !== px || cy !== py };
 }
 
-/** Everything the chart draws, in pixels. */
-export function chartModel(points, plan, { width = 280, height = 200, margin = { l: 40, r: 8, t: 20, b: 30 } } = {}) {
+const positive = (v) => Number.isFinite(v) && v > 0;
+
+/** The Mitsuba comparison of a sweep's meta (`meta.mitsuba`): {noise, reference} when computed, else null. */
+export function mitsubaFloor(meta) {
+  const m = meta?.mitsuba;
+  return m && m.computed ? { noise: m.noise, reference: m.reference_error } : null;
+}
+
+/** Everything the chart draws, in pixels. `meta` (the sweep's) adds the Mitsuba errors and the noise floor. */
+export function chartModel(points, plan, { width = 280, height = 200, margin = { l: 40, r: 8, t: 20, b: 30 },
+  meta = null } = {}) {
   const pts = plottable(points);
   const choice = currentChoice(plan);
+  const floor = mitsubaFloor(meta);
+  const vsMitsuba = floor ? pts.filter((p) => positive(p.mitsuba_error)) : [];
   const xs = pts.map((p) => p.measured_seconds);
-  const ys = pts.map((p) => p.measured_error);
+  const ys = pts.map((p) => p.measured_error).concat(vsMitsuba.map((p) => p.mitsuba_error));
   if (choice) {
     xs.push(choice.seconds);
     ys.push(choice.error);
+  }
+  if (floor && positive(floor.noise)) {
+    ys.push(floor.noise);
   }
   const x = logScale(logExtent(xs), [margin.l, width - margin.r]);
   const y = logScale(logExtent(ys), [height - margin.b, margin.t]);
@@ -106,7 +122,11 @@ export function chartModel(points, plan, { width = 280, height = 200, margin = {
       pareto: Boolean(p.pareto), point: p })),
     front: paretoFront(pts, method).map((p) => [x(p.measured_seconds), y(p.measured_error)]),
   }));
-  return { width, height, margin, x, y, series, marker: placeMarker(choice, x, y), choice,
+  const mitsuba = floor ? {
+    points: vsMitsuba.map((p) => ({ x: x(p.measured_seconds), y: y(p.mitsuba_error), point: p })),
+    noise: positive(floor.noise) ? { y: y(floor.noise), value: floor.noise } : null,
+  } : null;
+  return { width, height, margin, x, y, series, mitsuba, marker: placeMarker(choice, x, y), choice,
     xticks: decades(x.domain), yticks: decades(y.domain) };
 }
 
@@ -147,6 +167,20 @@ export function renderSvg(m) {
         + `${p.point.measured_error.toPrecision(3)}, ${p.point.measured_seconds.toPrecision(3)} s</title></circle>`);
     }
   }
+  if (m.mitsuba) {
+    const c = COLORS.mitsuba;
+    if (m.mitsuba.noise) {
+      const py = m.mitsuba.noise.y.toFixed(1);
+      out.push(`<line class="mitsuba-noise" x1="${g.l}" x2="${w - g.r}" y1="${py}" y2="${py}" stroke="${c}" `
+        + `stroke-dasharray="2 3"><title>Mitsuba 3 Monte Carlo noise floor: ${m.mitsuba.noise.value.toPrecision(2)}`
+        + '</title></line>');
+    }
+    for (const p of m.mitsuba.points) {
+      out.push(`<rect class="mitsuba-point" data-method="${p.point.method}" x="${(p.x - 3).toFixed(1)}" `
+        + `y="${(p.y - 3).toFixed(1)}" width="6" height="6" fill="none" stroke="${c}"><title>${p.point.method}: `
+        + `error vs Mitsuba 3 ${p.point.mitsuba_error.toPrecision(3)}</title></rect>`);
+    }
+  }
   if (m.marker) {
     const { x: mx, y: my, clamped } = m.marker;
     const d = 6;
@@ -156,8 +190,11 @@ export function renderSvg(m) {
       + `${clamped ? ' (off the axes)' : ''}</title></path>`);
   }
   let lx = g.l; // legend: one row above the plot, clear of the data
-  for (const [label, c] of [['frequency', COLORS.frequency], ['angular', COLORS.angular],
-    ['current (predicted)', COLORS.current]]) {
+  const legend = [['frequency', COLORS.frequency], ['angular', COLORS.angular], ['current', COLORS.current]];
+  if (m.mitsuba?.points.length) {
+    legend.push(['vs Mitsuba', COLORS.mitsuba]);
+  }
+  for (const [label, c] of legend) {
     out.push(`<circle cx="${lx + 3}" cy="8" r="3" fill="${c}"/><text x="${lx + 9}" y="11" font-size="9" `
       + `fill="#ddd">${label}</text>`);
     lx += 14 + 5 * label.length;

@@ -77,3 +77,19 @@ test('chartModel and renderSvg: both methods, their fronts and the current choic
   assert.ok(svg.startsWith('<svg') && svg.endsWith('</svg>'));
   assert.ok(!renderSvg(chartModel(POINTS, null)).includes('class="current"'));
 });
+
+test('chartModel and renderSvg: errors against Mitsuba 3 and its noise floor, only when computed', () => {
+  const pts = POINTS.map((p, k) => ({ ...p, mitsuba_error: p.method === 'frequency' ? 2e-4 * (k + 1) : null }));
+  const meta = { mitsuba: { computed: true, noise: 1e-4, reference_error: 1.5e-4 } };
+  const m = chartModel(pts, PLAN, { width: 300, height: 200, meta });
+  assert.equal(m.mitsuba.points.length, 3);
+  assert.ok(m.y.domain[0] <= 1e-4, 'the axis reaches down to the noise floor');
+  const expected = m.y(1e-4);
+  assert.equal(m.mitsuba.noise.y, expected);
+  const svg = renderSvg(m);
+  assert.equal((svg.match(/class="mitsuba-point" data-method="frequency"/g) || []).length, 3);
+  assert.equal((svg.match(/class="mitsuba-noise"/g) || []).length, 1);
+  assert.ok(svg.includes('vs Mitsuba'));
+  const off = renderSvg(chartModel(pts, PLAN, { meta: { mitsuba: { computed: false, reason: 'no twin' } } }));
+  assert.ok(!off.includes('mitsuba-point') && !off.includes('mitsuba-noise') && !off.includes('vs Mitsuba'));
+});
