@@ -137,8 +137,9 @@ def cpu_scene(frame: dict[str, Any], shrms: dict[str, Any], size: int) -> tuple[
 
 def test_scene_objects_in_the_3d_view(page: Any, tmp_path: Any, viewer_server: Any) -> None:
     """A two-object scene drawn together in the 3-D view, each object with its own SHRM and planned viewer, equals
-    the CPU's render of the same scene pixel for pixel (8-bit display values; tolerance 3 levels for float16
-    texture filtering and float32 shading, as the single-object comparison, and a mean under 0.2). Pixels next to
+    the CPU's render of the same scene pixel for pixel (8-bit display values; at most 2 levels, as the single-object
+    comparison, for SwiftShader's float16 texture filtering and float32 shading, and a mean under 0.05; measured:
+    at most 1 level, mean 0.001). Pixels next to
     a silhouette are left out (a ray grazing a sphere may hit or miss by rounding); everything else is compared,
     background included (black: no object may be drawn where none is, nor be missing)."""
     from relight.envmap import tonemap
@@ -190,7 +191,8 @@ def test_scene_objects_in_the_3d_view(page: Any, tmp_path: Any, viewer_server: A
             edge[:, :-1] |= d
             edge[:, 1:] |= d
     diff = np.abs(got - want)[~edge]
-    assert diff.max() <= 3 and diff.mean() < 0.2, f"max {diff.max()} levels, mean {diff.mean():.3f}"
+    print(f"scene canvas vs CPU: max {diff.max()} levels, mean {diff.mean():.3f} over {diff.size // 3} pixels")
+    assert diff.max() <= 2 and diff.mean() < 0.05, f"max {diff.max()} levels, mean {diff.mean():.3f}"
     for k in (0, 1):  # each object covers what the CPU says, and is lit
         inside = (hit == k) & ~edge
         assert inside.sum() > 100 and got[inside].max() > 10, (frame["objects"][k]["name"], inside.sum())

@@ -79,8 +79,8 @@ export async function sceneItems(pub, api, loadShape) {
     const [manifestBytes, buffer, geometry] = await Promise.all([api.sceneFile(pub.id, o.files.texture),
       api.sceneFile(pub.id, o.files.coefficients_bin), loadShape(o.shape || 'sphere')]);
     const manifest = JSON.parse(new TextDecoder().decode(manifestBytes));
-    return { name: o.name, center: objectCenter(o), radius: Number(o.size), mode: o.viewer === 'near' ? 'near'
-      : 'distant', geometry, manifest, buffer };
+    return { name: o.name, shape: o.shape || 'sphere', center: objectCenter(o), radius: Number(o.size),
+      mode: o.viewer === 'near' ? 'near' : 'distant', geometry, manifest, buffer };
   }));
 }
 

@@ -131,8 +131,9 @@ export class ShrmViewer {
   }
 
   /**
-   * Show a scene: several objects, each `{name, center: [x, y, z], radius, mode: 'distant' | 'near', geometry:
-   * 'sphere' | BufferGeometry (in the unit ball), manifest, buffer}` (its SHRM as ShrmObject.setShrm takes it).
+   * Show a scene: several objects, each `{name, shape, center: [x, y, z], radius, mode: 'distant' | 'near',
+   * geometry: 'sphere' | BufferGeometry (in the unit ball), manifest, buffer}` (its SHRM as ShrmObject.setShrm
+   * takes it).
    * The viewer stands at `eye` (the scene's viewer, the origin) and looks at the nearest object, with a field of
    * view wide enough for all of them. An empty list returns to the single object.
    */
@@ -143,7 +144,7 @@ export class ShrmViewer {
         const obj = new ShrmObject(this, { name: it.name, center: it.center, radius: it.radius,
           mode: it.mode ?? null });
         made.push(obj);
-        obj.setGeometry(it.geometry ?? 'sphere', it.name);
+        obj.setGeometry(it.geometry ?? 'sphere', it.shape ?? it.name);
         obj.setShrm(it.manifest, it.buffer);
       }
     } catch (err) {
