@@ -62,26 +62,30 @@ from numpy.typing import NDArray
 
 mi = pytest.importorskip("mitsuba", reason="Mitsuba 3 (pip install mitsuba) is this module's external oracle")
 
-from mitsuba_scene import (  # noqa: E402 - after the skip: the helpers import mitsuba when called
+from relight.brdf.models import TorranceSparrow  # noqa: E402
+from relight.conventions import latlong_dirs, luminance  # noqa: E402
+from relight.envmap import read_envmap, resample_latlong  # noqa: E402
+from relight.mitsuba_twin import (  # noqa: E402 - after the skip
     block_far_radius,
     block_mean,
     bsdf_eval,
     choose_variant,
     emitter_radiance,
     mitsuba_bitmap,
-    nearest_upsample,
     render_sphere_mitsuba,
     texel_dirs,
     twin,
 )
-
-from relight.brdf.models import TorranceSparrow  # noqa: E402
-from relight.conventions import latlong_dirs, luminance  # noqa: E402
-from relight.envmap import read_envmap, resample_latlong  # noqa: E402
 from relight.reference_view import reflected_radiance  # noqa: E402
 from relight.shrm import SHRM, create_shrm, render_sphere, sphere_geometry  # noqa: E402
 
 FloatArray = NDArray[np.float64]
+
+
+def nearest_upsample(pixels: NDArray[np.floating], k: int) -> FloatArray:
+    """The same piecewise-constant map on a k times finer lat-long grid (each pixel split into k x k)."""
+    p = np.asarray(pixels, dtype=np.float64)
+    return np.repeat(np.repeat(p, k, axis=0), k, axis=1)
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
 MAPS = ("studio", "sunset")  # studio: lights ~300x the mean; sunset: a low sun ~500x the mean at 128 rows
