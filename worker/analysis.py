@@ -118,7 +118,7 @@ def _add_texture(store: BlobStore, shrm_path: Path, entry: dict[str, Any], files
     files[bin_name] = {"sha256": texture["sha256"], "bytes": texture["bytes"],
                        "media_type": "application/octet-stream"}
     described = strip_volatile(manifest(shrm))
-    man = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION, "id": f"{entry['name']}",
+    man = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION, "id": entry["name"],
            "representation": "shrm", "layout": described["layout"], "height": shrm.height, "width": shrm.width,
            "layers": layer_entries(layers), "components": described["components"],
            "files": {BIN_NAME: {**texture, "name": bin_name}}, "object": entry["name"]}
