@@ -33,10 +33,12 @@ run: $(STAMP) web/node_modules/.installed
 	$(BIN)/relight serve --host 127.0.0.1 --port 8000 --data .relight-data
 
 lint: $(STAMP)
-	$(BIN)/ruff check relight server worker client tests bench
+	$(BIN)/ruff check relight server worker client tests bench tools
 
+# mypy reads the installed layout (relight.server from server/, ...): tools/pkgview.py links it under build/.
 typecheck: $(STAMP)
-	$(BIN)/mypy relight server worker client
+	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null
+	cd build/pkgview && ../../$(BIN)/mypy --config-file ../../pyproject.toml -p relight
 
 jstest: web/node_modules/.installed
 	node --test web/test/

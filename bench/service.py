@@ -35,7 +35,7 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from client.sdk import RelightClient  # noqa: E402
+from relight.client.sdk import RelightClient  # noqa: E402
 
 
 def start_server(data: Path, workers: int = 2) -> tuple[subprocess.Popen[bytes], str, Path]:

@@ -1,10 +1,10 @@
 """Python client for the relight service: ``RelightClient`` (sync) and ``AsyncRelightClient`` (httpx).
 
-The request and response models in :mod:`client.models` are the ones the server uses, so both sides agree on
-every field. Errors form one tree (:mod:`client.errors`).
+The request and response models in :mod:`relight.client.models` are the ones the server uses, so both sides agree on
+every field. Errors form one tree (:mod:`relight.client.errors`).
 """
 
-from client.errors import ApiError, JobFailed, RelightError, TransportError
-from client.sdk import AsyncRelightClient, RelightClient
+from relight.client.errors import ApiError, JobFailed, RelightError, TransportError
+from relight.client.sdk import AsyncRelightClient, RelightClient
 
 __all__ = ["ApiError", "AsyncRelightClient", "JobFailed", "RelightClient", "RelightError", "TransportError"]

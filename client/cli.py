@@ -18,7 +18,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from client.errors import RelightError
+from relight.client.errors import RelightError
 
 _DIGEST = re.compile(r"^[0-9a-f]{64}$")
 
@@ -31,7 +31,7 @@ def _default_preload() -> Path | None:
 
 
 def _client(args: argparse.Namespace) -> Any:
-    from client.sdk import RelightClient
+    from relight.client.sdk import RelightClient
 
     return RelightClient(args.server, api_key=args.api_key, timeout=args.timeout)
 
@@ -46,8 +46,8 @@ def _add_common(p: argparse.ArgumentParser) -> None:
 
 # -------------------------------------------------------------------------------------------------- commands
 def cmd_serve(args: argparse.Namespace) -> int:
-    from server.config import Settings
-    from server.run import serve
+    from relight.server.config import Settings
+    from relight.server.run import serve
 
     overrides: dict[str, Any] = {}
     if args.data is not None:
@@ -105,7 +105,7 @@ def cmd_submit(args: argparse.Namespace) -> int:
 
                 job = c.wait(job.id, timeout=args.wait_timeout, on_update=update)
         elif job.state != "succeeded":
-            from client.errors import JobFailed
+            from relight.client.errors import JobFailed
 
             raise JobFailed(job)
         if args.out:
@@ -139,7 +139,7 @@ def cmd_jobs(args: argparse.Namespace) -> int:
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
-    from worker.run import run_worker
+    from relight.worker.run import run_worker
 
     run_worker(args.scheduler, nthreads=args.nthreads, name=args.name, memory_limit=args.memory_limit,
                nanny=not args.no_nanny, host=args.host)

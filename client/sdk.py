@@ -1,7 +1,8 @@
 """``RelightClient`` (sync) and ``AsyncRelightClient`` over httpx.
 
 Both build their requests from the same :class:`_Call` descriptions and parse answers into the shared models
-(:mod:`client.models`); they differ only in how a call is sent. Every failure is a :class:`client.errors.RelightError`.
+(:mod:`relight.client.models`); they differ only in how a call is sent. Every failure is a
+:class:`relight.client.errors.RelightError`.
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ from typing import Any, Generic, TypeVar
 import httpx
 from pydantic import BaseModel
 
-from client.errors import JobFailed, TransportError, from_httpx, from_response
-from client.models import (
+from relight.client.errors import JobFailed, TransportError, from_httpx, from_response
+from relight.client.models import (
     BrdfPublic,
     EnvmapList,
     EnvmapPublic,

@@ -18,7 +18,7 @@ from typing import Any
 import dask
 from distributed import Client, LocalCluster
 
-from server.config import Settings
+from relight.server.config import Settings
 
 log = logging.getLogger("relight.server")
 
@@ -62,7 +62,7 @@ class Cluster:
                     dashboard_address=None,
                     worker_dashboard_address=None,
                     memory_limit=s.worker_memory_limit,
-                    preload=["worker.preload"],
+                    preload=["relight.worker.preload"],
                     asynchronous=True,
                 )
             client = Client

@@ -10,11 +10,11 @@ from fastapi import FastAPI
 from fastapi.middleware.cors import CORSMiddleware
 
 import relight
-from server import problems
-from server.api.router import include_routes
-from server.config import Settings, get_settings
-from server.state import Services
-from server.viewer import mount_viewer
+from relight.server import problems
+from relight.server.api.router import include_routes
+from relight.server.config import Settings, get_settings
+from relight.server.state import Services
+from relight.server.viewer import mount_viewer
 
 DESCRIPTION = """\
 Upload HDR environment maps, describe BRDFs, and get them prefiltered in frequency space into reflection maps and

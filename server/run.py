@@ -8,8 +8,8 @@ import sys
 import uvicorn
 from fastapi import FastAPI
 
-from server.config import Settings
-from server.main import create_app
+from relight.server.config import Settings
+from relight.server.main import create_app
 
 
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None:

@@ -7,18 +7,18 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from server.cluster import Cluster
-from server.config import Settings
-from server.db import Database
-from server.services.base import in_thread
-from server.services.brdfs import BrdfService
-from server.services.envmaps import EnvmapService
-from server.services.events import EventHub
-from server.services.jobs import JobService
-from server.services.metrics import Metrics
-from server.services.plans import PlanService
-from worker.blobs import BlobStore
-from worker.progress import TOPIC
+from relight.server.cluster import Cluster
+from relight.server.config import Settings
+from relight.server.db import Database
+from relight.server.services.base import in_thread
+from relight.server.services.brdfs import BrdfService
+from relight.server.services.envmaps import EnvmapService
+from relight.server.services.events import EventHub
+from relight.server.services.jobs import JobService
+from relight.server.services.metrics import Metrics
+from relight.server.services.plans import PlanService
+from relight.worker.blobs import BlobStore
+from relight.worker.progress import TOPIC
 
 log = logging.getLogger("relight.server")
 
@@ -61,7 +61,7 @@ class Services:
         return self
 
     async def _preload(self, directory: Path) -> None:
-        from server.problems import ProblemError
+        from relight.server.problems import ProblemError
 
         for path in sorted(directory.glob("*")):
             if path.suffix.lower() not in PRELOAD_SUFFIXES or not path.is_file():

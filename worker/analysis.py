@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 
 from relight.jsonable import jsonable as _jsonable
-from worker.blobs import BlobStore
-from worker.specs import from_core, to_core
+from relight.worker.blobs import BlobStore
+from relight.worker.specs import from_core, to_core
 
 #: Input rows a tradeoff works on unless the request says otherwise (its reference is O(S_L^2 S_B^2)).
 TRADEOFF_ROWS = 64
@@ -100,7 +100,7 @@ def _add_texture(store: BlobStore, shrm_path: Path, entry: dict[str, Any], files
     ``coefficients.bin`` of ``/shrms``) and ``{name}.texture.json`` (a result manifest for it, read by
     ``web/src/layout.js``); both named in the object's ``files`` and in the scene's file list."""
     from relight.shrm_io import manifest, read_shrm
-    from worker.results import (
+    from relight.worker.results import (
         BIN_NAME,
         MANIFEST_FORMAT,
         MANIFEST_VERSION,
@@ -109,7 +109,7 @@ def _add_texture(store: BlobStore, shrm_path: Path, entry: dict[str, Any], files
         put_texture,
         strip_volatile,
     )
-    from worker.shrm_adapter import shrm_layers
+    from relight.worker.shrm_adapter import shrm_layers
 
     shrm = read_shrm(shrm_path)
     layers = shrm_layers(shrm)

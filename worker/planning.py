@@ -157,7 +157,7 @@ def _shrm(lobe_or_sum: Any, lighting: StoredLighting, h: int, params: dict[str, 
 
 def plan_job(info: dict[str, Any], brdf_spec: dict[str, Any], params: dict[str, Any]) -> dict[str, Any]:
     """Plan a job for an uploaded map (its stored ``info``), a BRDF spec in the core's form
-    (``worker.specs.to_core``) and canonical parameters.
+    (``relight.worker.specs.to_core``) and canonical parameters.
 
     Returns representation and reason, orders, predicted error, output size and predicted seconds.
     """
@@ -166,7 +166,7 @@ def plan_job(info: dict[str, Any], brdf_spec: dict[str, Any], params: dict[str, 
     lobe = parse_brdf(brdf_spec)
     h, w = int(info["height"]), int(info["width"])
     lighting = StoredLighting(np.asarray(info["sh_power_spectrum"], dtype=np.float64), float(info["total_energy"]))
-    from worker.tasks import uses_reflection_map
+    from relight.worker.tasks import uses_reflection_map
 
     if uses_reflection_map(lobe, params):
         plan = _radial(lobe, lighting, h, params)

@@ -25,7 +25,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from worker.blobs import BlobCorrupt, BlobMissing, BlobStore
+from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
 
 MANIFEST_FORMAT: Final = "relight.shrm-result"
 MANIFEST_VERSION: Final = 1
@@ -175,7 +175,7 @@ def load_manifest(store: BlobStore, digest: str) -> dict[str, Any]:
 def existing_result(store: BlobStore, job_id: str) -> tuple[str, dict[str, Any]] | None:
     """The job's finished result if its manifest and every file it names are present and intact, else None.
 
-    A corrupt file is removed by the verification (see :mod:`worker.blobs`), so the job is computed again.
+    A corrupt file is removed by the verification (see :mod:`relight.worker.blobs`), so the job is computed again.
     """
     digest = store.get_ref(job_ref(job_id))
     if digest is None:

@@ -13,7 +13,7 @@ async def _serve(scheduler: str, *, nthreads: int, name: str | None, memory_limi
 
     cls: Any = Nanny if nanny else Worker
     kwargs: dict[str, Any] = {"nthreads": nthreads, "memory_limit": memory_limit, "dashboard": False,
-                              "preload": ["worker.preload"]}
+                              "preload": ["relight.worker.preload"]}
     if name:
         kwargs["name"] = name
     if host:

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from worker.progress import Reporter
-from worker.results import Layer, strip_volatile
+from relight.worker.progress import Reporter
+from relight.worker.results import Layer, strip_volatile
 
 
 def shrm_layers(shrm: Any) -> list[Layer]:

@@ -17,7 +17,7 @@ import re
 from typing import Any, Final
 
 from relight.errors import InputError
-from worker.blobs import BlobStore
+from relight.worker.blobs import BlobStore
 
 #: Core kinds whose parameters are file paths.
 PATH_KINDS: Final = ("merl", "measured", "lobe1d")

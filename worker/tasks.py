@@ -4,10 +4,10 @@
   size-capped from the header first) and returns its metadata, SH power spectrum and a preview.
 * :func:`compute_shrm` is the single job entry point: it dispatches on the BRDF (radially symmetric lobes go
   through ``relight.prefilter.prefilter_radial``; general BRDFs through the SHRM prefilter) and writes the
-  result files (:mod:`worker.results`).
+  result files (:mod:`relight.worker.results`).
 * :func:`render_reflection` evaluates a result for one view direction (seed 000 eq. 12).
 
-Inputs and outputs go through the shared blob store (:mod:`worker.blobs`) whose root the server passes in.
+Inputs and outputs go through the shared blob store (:mod:`relight.worker.blobs`) whose root the server passes in.
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.jsonable import jsonable as _jsonable
-from worker.blobs import BlobStore
-from worker.progress import Reporter
-from worker.results import Layer, existing_result, load_manifest, strip_volatile, write_result
-from worker.specs import from_core, to_core
+from relight.worker.blobs import BlobStore
+from relight.worker.progress import Reporter
+from relight.worker.results import Layer, existing_result, load_manifest, strip_volatile, write_result
+from relight.worker.specs import from_core, to_core
 
 #: Rows of the PNG preview of an uploaded map.
 PREVIEW_ROWS = 256
@@ -130,7 +130,7 @@ def _radial(
 def _general(
     pixels: NDArray[np.float32], lobe: Any, params: dict[str, Any], report: Reporter
 ) -> tuple[list[Layer], str, dict[str, Any], dict[str, str]]:
-    from worker import shrm_adapter
+    from relight.worker import shrm_adapter
 
     return shrm_adapter.prefilter(pixels, lobe, params, report)
 
@@ -218,7 +218,7 @@ def render_reflection(store_root: str, manifest_digest: str, view: list[float]) 
 
 def _reflection_image(store: BlobStore, manifest: dict[str, Any], view: NDArray[np.float64]) -> NDArray[np.float64]:
     from relight.envmap import read_exr_layers
-    from worker import shrm_adapter
+    from relight.worker import shrm_adapter
 
     digest = manifest["files"]["coefficients.exr"]["sha256"]
     if manifest["representation"] == "reflection_map":

@@ -2,7 +2,7 @@
 
 Every dependency is ``async``: FastAPI runs plain ``def`` dependencies in the thread pool, a thread hop per
 dependency per request, which on the cached-download path costs more than the work itself. Settings come from
-the app (``create_app(settings)``, default :func:`server.config.get_settings`); a test passes its own.
+the app (``create_app(settings)``, default :func:`relight.server.config.get_settings`); a test passes its own.
 """
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from server.config import Settings
-from server.problems import Unauthorized
-from server.services.brdfs import BrdfService
-from server.services.envmaps import EnvmapService
-from server.services.jobs import JobService
-from server.services.plans import PlanService
-from server.state import Services
+from relight.server.config import Settings
+from relight.server.problems import Unauthorized
+from relight.server.services.brdfs import BrdfService
+from relight.server.services.envmaps import EnvmapService
+from relight.server.services.jobs import JobService
+from relight.server.services.plans import PlanService
+from relight.server.state import Services
 
 
 async def get_app_settings(request: Request) -> Settings:

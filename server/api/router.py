@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fastapi import FastAPI
 
-from server.api.deps import ApiKey
-from server.api.routes import brdfs, envmaps, health, jobs, plan, render, scenes, shrms, tradeoffs
+from relight.server.api.deps import ApiKey
+from relight.server.api.routes import brdfs, envmaps, health, jobs, plan, render, scenes, shrms, tradeoffs
 
 
 def include_routes(app: FastAPI) -> None:

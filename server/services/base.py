@@ -9,7 +9,7 @@ from typing import Any, TypeVar
 
 import anyio.to_thread
 
-from worker.results import canonical_json
+from relight.worker.results import canonical_json
 
 T = TypeVar("T")
 

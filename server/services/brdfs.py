@@ -12,20 +12,20 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from client.models import BrdfPublic
+from relight.client.models import BrdfPublic
 from relight.errors import InputError
-from server.config import Settings
-from server.db import Brdf, Database
-from server.problems import BadRequest, ContentTooLarge, NotFound, Unprocessable
-from server.services.base import content_id, in_thread, utc
-from worker.blobs import DIGEST_RE, BlobStore
-from worker.specs import check_client_string
+from relight.server.config import Settings
+from relight.server.db import Brdf, Database
+from relight.server.problems import BadRequest, ContentTooLarge, NotFound, Unprocessable
+from relight.server.services.base import content_id, in_thread, utc
+from relight.worker.blobs import DIGEST_RE, BlobStore
+from relight.worker.specs import check_client_string
 
 
 def canonical_spec(spec: dict[str, Any] | str) -> tuple[dict[str, Any], Any]:
     """Parse with the core (its validation is the authority) and return the canonical spec and the lobe.
 
-    Strings that would make the core open a file are refused first (``worker.specs``)."""
+    Strings that would make the core open a file are refused first (``relight.worker.specs``)."""
     from relight.brdf.spec import brdf_to_spec, parse_brdf
 
     try:

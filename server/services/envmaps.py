@@ -6,7 +6,7 @@ Order of checks (each rejects before the next costs anything):
 2. Magic bytes of the first chunk -> 415 for anything but OpenEXR, Radiance RGBE, PNG or JPEG.
 3. Header only (``relight.envmap.probe``: pure Python, allocates nothing) -> 422 for a truncated header, more
    pixels than ``max_pixels`` or an aspect that is neither lat-long (2:1) nor a cube-map layout.
-4. Decoding (``worker.tasks.analyze_envmap``) in a Dask worker process, under the worker's memory limit and a
+4. Decoding (``relight.worker.tasks.analyze_envmap``) in a Dask worker process, under the worker's memory limit and a
    time limit (the worker is restarted if decoding overruns) -> 422 for corrupt data or NaN/Inf texels.
 
 The id is the SHA-256 of the uploaded bytes: uploading the same file twice returns the same map.
@@ -23,16 +23,23 @@ from typing import Any, Final
 from distributed.scheduler import KilledWorker
 from sqlalchemy import select
 
-from client.models import EnvmapPublic
+from relight.client.models import EnvmapPublic
 from relight.errors import InputError
-from server.cluster import Cluster
-from server.config import Settings
-from server.db import Database, Envmap
-from server.problems import BadRequest, ContentTooLarge, NotFound, Unavailable, Unprocessable, UnsupportedMediaType
-from server.services.base import in_thread, utc
-from server.services.metrics import Metrics
-from worker import tasks
-from worker.blobs import BlobCorrupt, BlobMissing, BlobStore, BlobWriter, check_digest
+from relight.server.cluster import Cluster
+from relight.server.config import Settings
+from relight.server.db import Database, Envmap
+from relight.server.problems import (
+    BadRequest,
+    ContentTooLarge,
+    NotFound,
+    Unavailable,
+    Unprocessable,
+    UnsupportedMediaType,
+)
+from relight.server.services.base import in_thread, utc
+from relight.server.services.metrics import Metrics
+from relight.worker import tasks
+from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore, BlobWriter, check_digest
 
 log = logging.getLogger("relight.server")
 

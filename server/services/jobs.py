@@ -2,10 +2,10 @@
 
 * **Identity.** A job's id is the SHA-256 of (input digests, canonical parameters, ``relight.ALGORITHM_VERSION``):
   identical requests share one job and one result.
-* **Submission.** One watcher task per active job submits ``worker.tasks.compute_shrm`` and awaits it; a dict of
+* **Submission.** One watcher task per active job submits ``relight.worker.tasks.compute_shrm`` and awaits it; a dict of
   watchers (mutated only on the event loop) guarantees one submission per job in this process, the primary
   key guarantees one row. A lost worker is Dask's business: it reschedules the task (``runs`` counts starts).
-* **Progress.** Workers publish Dask events (:mod:`worker.progress`); every event is fanned out to event streams
+* **Progress.** Workers publish Dask events (:mod:`relight.worker.progress`); every event is fanned out to event streams
   at once, and stored at most every ``progress_interval_s`` (or on a stage change).
 * **Recovery.** At start-up jobs left ``queued`` or ``running`` are submitted again (at-least-once). The worker
   finds a finished result through its ref instead of recomputing, and results are content-addressed, so a
@@ -29,7 +29,7 @@ from typing import Any, Final, TypeVar
 
 from sqlalchemy import func, select, update
 
-from client.models import (
+from relight.client.models import (
     ACTIVE_STATES,
     JobList,
     JobParams,
@@ -42,19 +42,19 @@ from client.models import (
     parse_view,
 )
 from relight.errors import InputError
-from server.cluster import Cluster
-from server.config import Settings
-from server.db import Database, Job, Render, utcnow
-from server.problems import Conflict, NotFound, TooManyJobs, Unavailable, Unprocessable
-from server.services.base import aware, content_id, in_thread, utc
-from server.services.envmaps import EnvmapService
-from server.services.events import EventHub
-from server.services.metrics import Metrics
-from server.services.plans import PlanService, Prepared
-from server.services.runner import failure_of, run_with_resubmits
-from worker import tasks
-from worker.blobs import BlobCorrupt, BlobMissing, BlobStore
-from worker.results import job_ref, load_manifest
+from relight.server.cluster import Cluster
+from relight.server.config import Settings
+from relight.server.db import Database, Job, Render, utcnow
+from relight.server.problems import Conflict, NotFound, TooManyJobs, Unavailable, Unprocessable
+from relight.server.services.base import aware, content_id, in_thread, utc
+from relight.server.services.envmaps import EnvmapService
+from relight.server.services.events import EventHub
+from relight.server.services.metrics import Metrics
+from relight.server.services.plans import PlanService, Prepared
+from relight.server.services.runner import failure_of, run_with_resubmits
+from relight.worker import tasks
+from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
+from relight.worker.results import job_ref, load_manifest
 
 log = logging.getLogger("relight.server")
 T = TypeVar("T")
@@ -361,7 +361,7 @@ class JobService:
 
     # ------------------------------------------------------------------------------------------------ progress
     def on_event(self, event: Any) -> None:
-        """Dask topic handler: ``event`` is ``(timestamp, message)`` from :class:`worker.progress.Reporter`.
+        """Dask topic handler: ``event`` is ``(timestamp, message)`` from :class:`relight.worker.progress.Reporter`.
 
         Dask awaits handlers inside its message loop (task completions wait behind them), so events are only
         queued here and handled, in order, by :meth:`_consume_events`.

@@ -8,16 +8,16 @@ from typing import Any
 from sqlalchemy import select
 
 import relight
-from client.models import BrdfPublic, EnvmapPublic, JobCreate, Orders, OutputShape, PlanPublic, PredictedError
+from relight.client.models import BrdfPublic, EnvmapPublic, JobCreate, Orders, OutputShape, PlanPublic, PredictedError
 from relight.errors import InputError
-from server.config import Settings
-from server.db import Database, Job
-from server.problems import Unavailable, Unprocessable
-from server.services.base import content_id, in_thread
-from server.services.brdfs import BrdfService
-from server.services.envmaps import EnvmapService
-from worker.blobs import BlobCorrupt, BlobMissing, BlobStore
-from worker.specs import to_core
+from relight.server.config import Settings
+from relight.server.db import Database, Job
+from relight.server.problems import Unavailable, Unprocessable
+from relight.server.services.base import content_id, in_thread
+from relight.server.services.brdfs import BrdfService
+from relight.server.services.envmaps import EnvmapService
+from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
+from relight.worker.specs import to_core
 
 
 @dataclass(frozen=True)
@@ -70,10 +70,10 @@ class PlanService:
         return Prepared(env, brdf, params, job_id_for(env.id, brdf.id, params))
 
     async def plan_prepared(self, prep: Prepared) -> PlanPublic:
-        from worker.planning import plan_job
+        from relight.worker.planning import plan_job
 
         def run() -> dict[str, Any]:
-            from server.services.tradeoffs import plan_seconds
+            from relight.server.services.tradeoffs import plan_seconds
 
             spec = to_core(prep.brdf.spec, self.store)
             raw = plan_job(prep.envmap.model_dump(mode="json"), spec, prep.params)
@@ -89,7 +89,7 @@ class PlanService:
             raise Unavailable(f"the measured BRDF file of {prep.brdf.id} is unusable ({exc}); upload it again") \
                 from None
         if not raw["cost_model"]["calibrated"]:
-            from server.services.tradeoffs import start_calibration
+            from relight.server.services.tradeoffs import start_calibration
 
             start_calibration(self.envmaps.cluster)
         s = self.settings

@@ -1,5 +1,6 @@
-"""Running one task on the Dask cluster for a stored job: what SHRM jobs (:mod:`server.services.jobs`) and analysis
-jobs (:mod:`server.services.tradeoffs`: sweeps, scenes) share.
+"""Running one task on the Dask cluster for a stored job: what SHRM jobs (:mod:`relight.server.services.jobs`) and
+analysis
+jobs (:mod:`relight.server.services.tradeoffs`: sweeps, scenes) share.
 
 * :func:`run_with_resubmits` — submit, await, and submit again when the future is lost (the scheduler connection
   dropped, or the cluster restarted) while the job is still wanted, with a capped exponential back-off; after
@@ -19,7 +20,7 @@ from distributed.client import FutureCancelledError
 from distributed.scheduler import KilledWorker
 
 from relight.errors import InputError
-from worker.progress import JobCancelled
+from relight.worker.progress import JobCancelled
 
 log = logging.getLogger("relight.server")
 

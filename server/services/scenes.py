@@ -17,13 +17,13 @@ from typing import Any
 
 from fastapi import Request
 
-from client.models import JobState, SceneCreate, ScenePublic
+from relight.client.models import JobState, SceneCreate, ScenePublic
 from relight.errors import InputError
-from server.problems import Conflict, NotFound, Unprocessable
-from server.services.base import aware, in_thread, utc
-from server.services.tradeoffs import Analysis, AnalysisService, service_for
-from worker.blobs import BlobCorrupt, BlobMissing
-from worker.specs import to_core
+from relight.server.problems import Conflict, NotFound, Unprocessable
+from relight.server.services.base import aware, in_thread, utc
+from relight.server.services.tradeoffs import Analysis, AnalysisService, service_for
+from relight.worker.blobs import BlobCorrupt, BlobMissing
+from relight.worker.specs import to_core
 
 
 class SceneService(AnalysisService):
@@ -31,7 +31,7 @@ class SceneService(AnalysisService):
     result_version = 2  # 2: per-object float16 textures for the viewer ({name}.coefficients.bin, .texture.json)
 
     def task(self) -> Callable[..., Any]:
-        from worker.analysis import run_scene
+        from relight.worker.analysis import run_scene
 
         return run_scene
 

@@ -3,9 +3,9 @@ cost model behind ``/plan``.
 
 * **Analysis jobs.** A tradeoff or a scene is identified by the SHA-256 of its canonical request (with
   ``relight.ALGORITHM_VERSION`` and the kind's result version); its row in the ``analyses`` table is the source of
-  truth. Submitting starts one Dask task (:mod:`worker.analysis`) and a watcher that stores the result (small
+  truth. Submitting starts one Dask task (:mod:`relight.worker.analysis`) and a watcher that stores the result (small
   JSON) in the row; a lost future is submitted again and failures are classified as for SHRM jobs
-  (:mod:`server.services.runner`). Identical requests share the row (200 with the result once it exists). Rows
+  (:mod:`relight.server.services.runner`). Identical requests share the row (200 with the result once it exists). Rows
   left queued or running by a previous server process are submitted again when the service first starts in a
   process (at-least-once).
 * **Cost model.** ``/plan`` predicts seconds with ``relight.costmodel``: the calibration cached for this machine if
@@ -27,16 +27,16 @@ from sqlalchemy import JSON, DateTime, Integer, String, Text, select, update
 from sqlalchemy.orm import Mapped, mapped_column
 
 import relight
-from client.models import JobState, TradeoffCreate, TradeoffPublic
-from server.cluster import Cluster
-from server.config import Settings
-from server.db import Base, Database, utcnow
-from server.problems import NotFound, TooManyJobs, Unprocessable
-from server.services.base import aware, content_id, in_thread, utc
-from server.services.brdfs import BrdfService
-from server.services.envmaps import EnvmapService
-from server.services.runner import failure_of, run_with_resubmits
-from worker.blobs import BlobStore
+from relight.client.models import JobState, TradeoffCreate, TradeoffPublic
+from relight.server.cluster import Cluster
+from relight.server.config import Settings
+from relight.server.db import Base, Database, utcnow
+from relight.server.problems import NotFound, TooManyJobs, Unprocessable
+from relight.server.services.base import aware, content_id, in_thread, utc
+from relight.server.services.brdfs import BrdfService
+from relight.server.services.envmaps import EnvmapService
+from relight.server.services.runner import failure_of, run_with_resubmits
+from relight.worker.blobs import BlobStore
 
 log = logging.getLogger("relight.server")
 
@@ -82,7 +82,7 @@ class AnalysisService(ABC):
 
     @abstractmethod
     def task(self) -> Callable[..., Any]:
-        """The worker function this kind of analysis runs (``worker.analysis``)."""
+        """The worker function this kind of analysis runs (``relight.worker.analysis``)."""
 
     def _row(self, job_id: str) -> Analysis | None:
         with self.db.session() as s:
@@ -192,7 +192,7 @@ class TradeoffService(AnalysisService):
     result_version = 2  # 2: Mitsuba 3 errors (points' mitsuba_error, meta.mitsuba)
 
     def task(self) -> Callable[..., Any]:
-        from worker.analysis import compute_tradeoff
+        from relight.worker.analysis import compute_tradeoff
 
         return compute_tradeoff
 
@@ -242,13 +242,14 @@ _calibrating: dict[str, Any] = {}
 
 
 def start_calibration(cluster: Cluster) -> None:
-    """Calibrate the cost model once in a worker (``worker.analysis.calibrate_costmodel``); call on the event loop.
+    """Calibrate the cost model once in a worker (``relight.worker.analysis.calibrate_costmodel``); call on the event
+    loop.
 
     The worker writes the calibration file that :func:`plan_seconds` reads on later calls.
     """
     if "future" in _calibrating:
         return
-    from worker.analysis import calibrate_costmodel
+    from relight.worker.analysis import calibrate_costmodel
 
     try:
         _calibrating["future"] = cluster.submit(calibrate_costmodel, key="relight-costmodel-calibration")
@@ -258,8 +259,9 @@ def start_calibration(cluster: Cluster) -> None:
 
 def plan_seconds(raw: dict[str, Any], brdf_spec: Any, params: dict[str, Any], height: int,
                  width: int) -> tuple[float, dict[str, Any]]:
-    """Predicted seconds of a planned job (``worker.planning.plan_job``'s ``raw``) with the calibrated cost model,
-    plus decoding the input and writing the result (``worker.planning``'s I/O terms), and what model was used.
+    """Predicted seconds of a planned job (``relight.worker.planning.plan_job``'s ``raw``) with the calibrated cost
+    model, plus decoding the input and writing the result (``relight.worker.planning``'s I/O terms), and what model was
+    used.
 
     Without a cached calibration the built-in constants are used (``calibrated: false``; the caller starts one with
     :func:`start_calibration`). Runs in a thread: it parses the BRDF and reads the order search's cache.
@@ -268,7 +270,7 @@ def plan_seconds(raw: dict[str, Any], brdf_spec: Any, params: dict[str, Any], he
     from relight.brdf import lpq
     from relight.brdf.spec import parse_brdf
     from relight.shrm import brdf_lobes
-    from worker.planning import T_DECODE_PIXEL, T_FIXED, T_WRITE_PIXEL
+    from relight.worker.planning import T_DECODE_PIXEL, T_FIXED, T_WRITE_PIXEL
 
     cal = costmodel.load_calibration(run=False)
     brdf = parse_brdf(brdf_spec)

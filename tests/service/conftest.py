@@ -9,7 +9,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from client.sdk import RelightClient
+from relight.client.sdk import RelightClient
 
 from .support import Server, assert_healthy, assert_problem, exr_bytes, make_envmap, start_server
 

@@ -20,7 +20,7 @@ from typing import Any
 import httpx
 import numpy as np
 
-from client.sdk import RelightClient
+from relight.client.sdk import RelightClient
 
 REPO = Path(__file__).resolve().parents[2]
 URL_LINE = re.compile(r"relight: serving (http://\S+)")

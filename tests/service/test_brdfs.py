@@ -74,8 +74,8 @@ EXAMPLES: list[dict[str, Any]] = [
 def test_union_covers_every_core_model() -> None:
     import inspect
 
-    from client.brdfs import KINDS
     from relight.brdf import models
+    from relight.client.brdfs import KINDS
 
     home = {models.__name__, "relight.brdf.radial"}  # radial lobes are re-exported by models
     classes = [cls for _, cls in inspect.getmembers(models, inspect.isclass) if cls.__module__ in home]

@@ -11,7 +11,7 @@ import httpx
 import numpy as np
 import pytest
 
-from client.sdk import RelightClient
+from relight.client.sdk import RelightClient
 
 from .support import assert_healthy, assert_problem, exr_bytes, hdr_bytes, make_envmap
 

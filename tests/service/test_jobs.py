@@ -5,7 +5,7 @@ from __future__ import annotations
 import httpx
 import pytest
 
-from client.sdk import RelightClient
+from relight.client.sdk import RelightClient
 
 from .support import assert_healthy, assert_problem
 

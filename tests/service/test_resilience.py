@@ -17,8 +17,8 @@ import httpx
 import psutil
 import pytest
 
-from client.models import JobPublic, JobState
-from client.sdk import RelightClient
+from relight.client.models import JobPublic, JobState
+from relight.client.sdk import RelightClient
 
 from .support import (
     Server,
@@ -129,7 +129,7 @@ def test_cancel(slow: dict[str, object], data_tmp: Path) -> None:
         events = http.get(f"/jobs/{job.id}/events").text
         assert "event: end" in events and '"cancelled"' in events
         assert_problem(http.get(f"/shrms/{job.id}"), 409, "cancelled")
-        from client.errors import JobFailed
+        from relight.client.errors import JobFailed
 
         with pytest.raises(JobFailed, match="cancelled"):
             c.wait(job.id, timeout=10)

@@ -1,4 +1,5 @@
-"""``server.services.runner``: resubmission of lost Dask futures and the classification of failures, shared by SHRM
+"""``relight.server.services.runner``: resubmission of lost Dask futures and the classification of failures, shared
+by SHRM
 jobs and analysis jobs. The futures here are plain asyncio ones that fail the way Dask's do when the scheduler
 connection drops (``FutureCancelledError``); the real cluster paths run in ``test_resilience.py``."""
 
@@ -13,8 +14,8 @@ from distributed.client import FutureCancelledError
 from distributed.scheduler import KilledWorker
 
 from relight.errors import InputError
-from server.services import runner
-from worker.progress import JobCancelled
+from relight.server.services import runner
+from relight.worker.progress import JobCancelled
 
 
 def settled(value: Any = None, exc: BaseException | None = None) -> asyncio.Future[Any]:

@@ -13,8 +13,8 @@ import httpx
 import numpy as np
 import pytest
 
-from client.errors import ApiError
-from client.models import JobState
+from relight.client.errors import ApiError
+from relight.client.models import JobState
 
 from .support import Proc, Server, assert_problem, base_env, library_map, read_exr, start_server, wait_until
 

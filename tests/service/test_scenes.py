@@ -10,7 +10,7 @@ import httpx
 import numpy as np
 import pytest
 
-from client.sdk import RelightClient
+from relight.client.sdk import RelightClient
 
 from .support import assert_healthy, assert_problem, read_exr
 
@@ -72,7 +72,7 @@ def check_texture(http: httpx.Client, sid: str, done: dict[str, Any], name: str)
     (``relight.gl.layout.from_manifest`` reads it, as ``web/src/layout.js`` does)."""
     from relight.gl import layout as gl_layout
     from relight.shrm_io import read_shrm
-    from worker.shrm_adapter import shrm_layers
+    from relight.worker.shrm_adapter import shrm_layers
 
     files = next(o for o in done["result"]["objects"] if o["name"] == name)["files"]
     assert files["texture"] == f"{name}.texture.json" and files["coefficients_bin"] == f"{name}.coefficients.bin"

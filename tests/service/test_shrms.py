@@ -11,8 +11,8 @@ import httpx
 import numpy as np
 import pytest
 
-from client.models import JobPublic, JobState
-from client.sdk import RelightClient
+from relight.client.models import JobPublic, JobState
+from relight.client.sdk import RelightClient
 
 from .support import Server, assert_healthy, assert_problem, exr_bytes, library_map, make_envmap, read_exr
 
@@ -179,8 +179,8 @@ def test_async_client(server: Server, data_tmp: Path) -> None:
     import asyncio
     import concurrent.futures
 
-    from client import AsyncRelightClient
-    from client.errors import ApiError
+    from relight.client import AsyncRelightClient
+    from relight.client.errors import ApiError
 
     src = data_tmp / "async.exr"
     src.write_bytes(exr_bytes(make_envmap(32, seed=51), data_tmp))

@@ -8,8 +8,8 @@ from typing import Any
 import httpx
 import pytest
 
-from client.models import TradeoffPublic
-from client.sdk import RelightClient
+from relight.client.models import TradeoffPublic
+from relight.client.sdk import RelightClient
 
 from .support import assert_healthy, assert_problem
 

@@ -177,7 +177,7 @@ def test_half_float_files_clamp_instead_of_overflowing(tmp_path: Path) -> None:
     """Every writer of half-float data: SHRM EXR (half), the service's float16 texture, the viewer's background."""
     from relight.gl.views import envmap_texture
     from relight.shrm_io import read_shrm, write_shrm
-    from worker.results import Layer, half_layers
+    from relight.worker.results import Layer, half_layers
 
     sm = _bright_shrm()
     assert np.abs(sm.components[0].maps).max() > HALF_MAX

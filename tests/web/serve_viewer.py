@@ -1,8 +1,9 @@
 """Run the relight service *with the viewer* for the browser tests and the benchmark.
 
-``python -m tests.web.serve_viewer --data DIR [--port 0]`` builds the app with ``server.main.create_app`` and, if
+``python -m tests.web.serve_viewer --data DIR [--port 0]`` builds the app with ``relight.server.main.create_app``
+and, if
 the lead has not wired them in yet, adds the render router (``server/api/routes/render.py``, behind the API key
-like the other routes) and ``server.viewer.mount_viewer``. It prints ``relight: serving http://host:port`` once
+like the other routes) and ``relight.server.viewer.mount_viewer``. It prints ``relight: serving http://host:port`` once
 ready (the line ``tests/service/conftest.py`` waits for). Settings come from ``RELIGHT_*`` variables.
 """
 
@@ -16,14 +17,14 @@ from pathlib import Path
 import uvicorn
 from fastapi import FastAPI
 
-from server.config import Settings
+from relight.server.config import Settings
 
 
 def build_app(settings: Settings, on_ready: object = None) -> FastAPI:
-    from server.api.deps import ApiKey
-    from server.api.routes import render
-    from server.main import create_app
-    from server.viewer import mount_viewer
+    from relight.server.api.deps import ApiKey
+    from relight.server.api.routes import render
+    from relight.server.main import create_app
+    from relight.server.viewer import mount_viewer
 
     app = create_app(settings, on_ready=on_ready)  # type: ignore[arg-type]
     paths = {getattr(r, "path", None) for r in app.routes}

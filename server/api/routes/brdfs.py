@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
 
-from client.brdfs import BrdfSpec
-from client.models import BrdfPublic
-from server.api.deps import BrdfsDep
-from server.problems import problem_responses
+from relight.client.brdfs import BrdfSpec
+from relight.client.models import BrdfPublic
+from relight.server.api.deps import BrdfsDep
+from relight.server.problems import problem_responses
 
 router = APIRouter(prefix="/brdfs", tags=["brdfs"])
 

@@ -7,10 +7,10 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Request, Response
 from starlette.responses import Response as StarletteResponse
 
-from client.models import EnvmapList, EnvmapPublic
-from server.api.deps import EnvmapsDep
-from server.api.http import blob_response
-from server.problems import problem_responses
+from relight.client.models import EnvmapList, EnvmapPublic
+from relight.server.api.deps import EnvmapsDep
+from relight.server.api.http import blob_response
+from relight.server.problems import problem_responses
 
 router = APIRouter(prefix="/envmaps", tags=["envmaps"])
 

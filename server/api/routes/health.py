@@ -6,9 +6,9 @@ from fastapi import APIRouter
 from starlette.responses import PlainTextResponse
 
 import relight
-from client.models import Health
-from server.api.deps import ServicesDep
-from server.services.base import in_thread
+from relight.client.models import Health
+from relight.server.api.deps import ServicesDep
+from relight.server.services.base import in_thread
 
 router = APIRouter(tags=["health"])
 

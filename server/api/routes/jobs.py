@@ -7,9 +7,9 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 from starlette.responses import StreamingResponse
 
-from client.models import JobList, JobPublic, JobState
-from server.api.deps import JobsDep
-from server.problems import problem_responses
+from relight.client.models import JobList, JobPublic, JobState
+from relight.server.api.deps import JobsDep
+from relight.server.problems import problem_responses
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 

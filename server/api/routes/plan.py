@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from client.models import PlanCreate, PlanPublic
-from server.api.deps import PlansDep
-from server.problems import problem_responses
+from relight.client.models import PlanCreate, PlanPublic
+from relight.server.api.deps import PlansDep
+from relight.server.problems import problem_responses
 
 router = APIRouter(tags=["plan"])
 

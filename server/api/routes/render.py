@@ -28,11 +28,11 @@ import numpy as np
 from fastapi import APIRouter, Query, Request
 from starlette.responses import Response
 
-from client.models import parse_view
+from relight.client.models import parse_view
 from relight.errors import InputError
-from server.api.deps import EnvmapsDep, JobsDep, ServicesDep
-from server.problems import Unavailable, Unprocessable, problem_responses
-from server.services.base import content_id
+from relight.server.api.deps import EnvmapsDep, JobsDep, ServicesDep
+from relight.server.problems import Unavailable, Unprocessable, problem_responses
+from relight.server.services.base import content_id
 
 log = logging.getLogger("relight.server")
 

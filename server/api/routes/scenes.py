@@ -7,10 +7,10 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Request, Response
 from starlette.responses import Response as StarletteResponse
 
-from client.models import SceneCreate, ScenePublic
-from server.api.http import blob_response
-from server.problems import problem_responses
-from server.services.scenes import SceneService, scene_service
+from relight.client.models import SceneCreate, ScenePublic
+from relight.server.api.http import blob_response
+from relight.server.problems import problem_responses
+from relight.server.services.scenes import SceneService, scene_service
 
 router = APIRouter(prefix="/scenes", tags=["scenes"])
 

@@ -7,11 +7,11 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Request, Response
 from starlette.responses import Response as StarletteResponse
 
-from client.models import JobPublic, ShrmCreate, ShrmManifest
-from server.api.deps import JobsDep
-from server.api.http import bytes_response
-from server.problems import problem_responses
-from worker.results import BIN_NAME, EXR_NAME, canonical_json
+from relight.client.models import JobPublic, ShrmCreate, ShrmManifest
+from relight.server.api.deps import JobsDep
+from relight.server.api.http import bytes_response
+from relight.server.problems import problem_responses
+from relight.worker.results import BIN_NAME, EXR_NAME, canonical_json
 
 router = APIRouter(prefix="/shrms", tags=["shrms"])
 

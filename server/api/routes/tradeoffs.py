@@ -6,9 +6,9 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Response
 
-from client.models import TradeoffCreate, TradeoffPublic
-from server.problems import problem_responses
-from server.services.tradeoffs import TradeoffService, tradeoff_service
+from relight.client.models import TradeoffCreate, TradeoffPublic
+from relight.server.problems import problem_responses
+from relight.server.services.tradeoffs import TradeoffService, tradeoff_service
 
 router = APIRouter(prefix="/tradeoffs", tags=["tradeoffs"])
 
