@@ -28,7 +28,8 @@ def test_skips_fail_and_xfail_does_not(pytester: pytest.Pytester) -> None:
             pass
     """)
     result = pytester.runpytest("-q")
-    result.assert_outcomes(passed=1, failed=2, xfailed=1)
+    # pytest.skip() in the body fails the call; a skipif marker skips in set-up, which now errors.
+    result.assert_outcomes(passed=1, failed=1, errors=1, xfailed=1)
     result.stdout.fnmatch_lines(["*demo reason*"])
 
 
