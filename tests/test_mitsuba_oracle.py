@@ -60,12 +60,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-mi = pytest.importorskip("mitsuba", reason="Mitsuba 3 (pip install mitsuba) is this module's external oracle")
-
-from relight.brdf.models import TorranceSparrow  # noqa: E402
-from relight.conventions import latlong_dirs, luminance  # noqa: E402
-from relight.envmap import read_envmap, resample_latlong  # noqa: E402
-from relight.mitsuba_twin import (  # noqa: E402 - after the skip
+from relight.brdf.models import TorranceSparrow
+from relight.conventions import latlong_dirs, luminance
+from relight.envmap import read_envmap, resample_latlong
+from relight.mitsuba_twin import (
     block_far_radius,
     block_mean,
     bsdf_eval,
@@ -76,8 +74,8 @@ from relight.mitsuba_twin import (  # noqa: E402 - after the skip
     texel_dirs,
     twin,
 )
-from relight.reference_view import reflected_radiance  # noqa: E402
-from relight.shrm import SHRM, create_shrm, render_sphere, sphere_geometry  # noqa: E402
+from relight.reference_view import reflected_radiance
+from relight.shrm import SHRM, create_shrm, render_sphere, sphere_geometry
 
 FloatArray = NDArray[np.float64]
 

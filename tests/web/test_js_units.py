@@ -6,8 +6,6 @@ import shutil
 import subprocess
 from pathlib import Path
 
-import pytest
-
 from tests.web import make_js_fixtures
 
 REPO = Path(__file__).resolve().parents[2]
@@ -22,7 +20,6 @@ def test_js_fixtures_are_current() -> None:
 
 def test_node_unit_tests_pass() -> None:
     node = shutil.which("node")
-    if node is None:
-        pytest.skip("node is not installed")
+    assert node is not None, "node is not installed (the README's prerequisites: Node.js >= 20)"
     proc = subprocess.run([node, "--test", "test/"], cwd=REPO / "web", capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
