@@ -203,7 +203,7 @@ def write_readme(out: Path, cases: list[dict[str, Any]], cal: costmodel.Calibrat
         "* **predicted_vs_measured_error**: the frequency method's prediction is the minimum-of-errors estimate "
         "sqrt(epsilon_B) (§5.1, circles) and App. B's conservative bound (triangles); the angular method's is the "
         "dropped share of the lobe, exact for a uniform environment.",
-        "* **predicted_vs_measured_time**: the cost model (`relight/costmodel.py`: seed 000 Table 3's terms, "
+        "* **predicted_vs_measured_time**: the cost model (`relight/costmodel/`: seed 000 Table 3's terms, "
         "O(F_B S_B^2) per map, (P+1)^2 maps, O(W S_L^2 S_B^2) for the angular method, with constants fitted on this "
         "machine by a short cached calibration); dotted lines are a factor of 2.",
         "",

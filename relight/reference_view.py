@@ -23,12 +23,15 @@ fraction of the lobe's integral). The cone depends on theta_o: near grazing (the
 i.e. N.V -> 0) a microfacet lobe spreads over most of the hemisphere. Outputs are processed in groups sorted by
 the polar angle of their centre, and only the environment rows that can meet a group's cones are visited, so the
 cost is O(W S_L^2) per output pixel like the paper's angular method, with W the cone's share of the sphere.
-Work is chunked so memory stays bounded (about ``chunk_elems`` pairs per block).
+Work is chunked so memory stays bounded (about ``chunk_elems`` pairs per block). That schedule is
+:func:`block_plan`, shared with the cost model (``relight.costmodel.angular``), which counts the same blocks.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -41,8 +44,7 @@ from relight.reference import DEFAULT_TRUNCATION
 from relight.shrm import brdf_lobes, halfway_normals, lobe_centres, reflect_dirs, sphere_geometry, unit_view
 
 FloatArray = NDArray[np.float64]
-
-
+IntArray = NDArray[np.intp]
 
 #: theta_o bins of the truncation table (module docstring).
 N_THETA_O_BINS = 32
@@ -86,6 +88,78 @@ def truncation_for(table: FloatArray, cos_o: FloatArray) -> FloatArray:
     t_o = np.arccos(np.clip(cos_o, -1.0, 1.0))
     k = np.clip((t_o / np.pi * table.size).astype(np.intp), 0, table.size - 1)
     return np.asarray(table[k], dtype=np.float64)
+
+
+#: Outputs per group of the block plan (sorted by the polar angle of their lobe centre, module docstring).
+GROUP_SIZE = 256
+#: About this many (output, input pixel) pairs per block: bounds the memory of one block's arrays (~4 MB per float).
+CHUNK_ELEMS = 500_000
+#: A block whose pairs inside the truncation cones exceed this share of it is evaluated densely (every pair, masked),
+#: which beats gathering index arrays for wide lobes; the cost model counts such a block's evaluations as all pairs.
+DENSE_FRACTION = 0.3
+
+
+@dataclass(frozen=True)
+class ViewGroup:
+    """Outputs evaluated together and the environment rows that can meet their cones, visited ``step`` rows at a
+    time (:meth:`blocks`)."""
+
+    outputs: IntArray
+    rows: IntArray
+    step: int
+
+    def blocks(self) -> Iterator[slice]:
+        """Slices of :attr:`rows`, one per block of at most ``step`` rows."""
+        for r0 in range(0, self.rows.size, self.step):
+            yield slice(r0, min(r0 + self.step, self.rows.size))
+
+
+@dataclass(frozen=True)
+class LobeBlockPlan:
+    """One lobe's schedule over the outputs: its centres, per-output cone half-angle theta* and polar angle of the
+    centre, and the groups of :func:`block_plan`."""
+
+    centres: FloatArray  # (n, 3)
+    theta_star: FloatArray  # (n,)
+    c_theta: FloatArray  # (n,)
+    groups: tuple[ViewGroup, ...]
+
+
+def block_plan(
+    lobe: Lobe, normals: FloatArray, refl: FloatArray, view: FloatArray, height: int, truncation: float,
+    *, group: int = GROUP_SIZE, chunk_elems: int = CHUNK_ELEMS,
+) -> LobeBlockPlan:
+    """The groups and row blocks in which :func:`reflected_radiance` evaluates one lobe (module docstring).
+
+    Outputs facing away from the view (``N . V <= 0``) are in no group. A group's rows are those within the largest
+    theta* of the group (plus half a pixel) of its centres' polar angles; each block holds at most ``chunk_elems``
+    pairs (at least one row).
+    """
+    width = 2 * height
+    env_theta = ring_thetas(height)
+    half_px = 0.5 * np.pi / height
+    table = lobe_truncation_angles(lobe, truncation)
+    centres = lobe_centres(str(lobe.center), normals, refl)
+    theta_star = truncation_for(table, centres @ view)  # per output: its view's theta_o bin
+    c_theta = np.arccos(np.clip(centres[:, 1], -1.0, 1.0))
+    facing = (normals @ view) > 0.0
+    order = np.argsort(c_theta, kind="stable")
+    order = order[facing[order]]
+    groups = []
+    for g0 in range(0, order.size, group):
+        idx = order[g0 : g0 + group]
+        reach = float(theta_star[idx].max()) + half_px
+        lo, hi = c_theta[idx].min(), c_theta[idx].max()
+        rows = np.nonzero((env_theta >= lo - reach) & (env_theta <= hi + reach))[0]
+        if rows.size:
+            groups.append(ViewGroup(outputs=idx, rows=rows, step=max(1, chunk_elems // (idx.size * width))))
+    return LobeBlockPlan(centres=centres, theta_star=theta_star, c_theta=c_theta, groups=tuple(groups))
+
+
+def is_dense(inside: float, pairs: int) -> bool:
+    """Whether a block with ``inside`` of its ``pairs`` inside the cones is evaluated densely
+    (:data:`DENSE_FRACTION`)."""
+    return inside > DENSE_FRACTION * pairs
 
 
 def _truncation_angle(lobe: Lobe, truncation: float, theta_o: float) -> float:
@@ -144,12 +218,13 @@ def reflected_radiance(
     view: NDArray[np.floating],
     *,
     truncation: float = DEFAULT_TRUNCATION,
-    chunk_elems: int = 500_000,
-    group: int = 256,
+    chunk_elems: int = CHUNK_ELEMS,
+    group: int = GROUP_SIZE,
 ) -> FloatArray:
     """``B(N, V)`` of eq. 1 for every normal (n, 3) and one distant view V (3,) by pixel sums, (n, 3).
 
-    ``brdf`` is a lobe or a sum of lobes (``.lobes``); N . V <= 0 gives 0 (the surface faces away).
+    ``brdf`` is a lobe or a sum of lobes (``.lobes``); N . V <= 0 gives 0 (the surface faces away). The pixels are
+    visited in the blocks of :func:`block_plan`.
     """
     env = np.asarray(pixels, dtype=np.float64)
     try:
@@ -163,38 +238,24 @@ def reflected_radiance(
     nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
     refl = reflect_dirs(nrm, v)
     env_dirs = latlong_dirs(h, w)
-    env_theta = ring_thetas(h)
-    half_px = 0.5 * np.pi / h
     weighted = env * pixel_solid_angles(h, w)[:, None, None]  # L_k dOmega_k
     out = np.zeros((nrm.shape[0], 3))
-    facing = (nrm @ v) > 0.0
     for lobe in brdf_lobes(brdf):
-        table = lobe_truncation_angles(lobe, truncation)
-        centres = lobe_centres(str(lobe.center), nrm, refl)
-        theta_star = truncation_for(table, centres @ v)  # per output: its view's theta_o bin
-        cos_star = np.cos(theta_star)
-        c_theta = np.arccos(np.clip(centres[:, 1], -1.0, 1.0))
-        order = np.argsort(c_theta, kind="stable")
-        order = order[facing[order]]
-        for g0 in range(0, order.size, group):
-            idx = order[g0 : g0 + group]
-            reach = float(theta_star[idx].max()) + half_px
-            lo, hi = c_theta[idx].min(), c_theta[idx].max()
-            rows = np.nonzero((env_theta >= lo - reach) & (env_theta <= hi + reach))[0]
-            if rows.size == 0:
-                continue
-            c = centres[idx]
-            step = max(1, chunk_elems // (idx.size * w))
+        plan = block_plan(lobe, nrm, refl, v, h, truncation, group=group, chunk_elems=chunk_elems)
+        cos_star = np.cos(plan.theta_star)
+        for grp in plan.groups:
+            idx = grp.outputs
+            c = plan.centres[idx]
             acc = np.zeros((idx.size, 3))
-            for r0 in range(0, rows.size, step):
-                block = rows[r0 : r0 + step]
+            for sl in grp.blocks():
+                block = grp.rows[sl]
                 d = env_dirs[block].reshape(-1, 3)
                 lw = weighted[block].reshape(-1, 3)
                 mask = c @ d.T >= cos_star[idx][:, None]  # (G, n): pairs inside the truncation cones
-                frac = float(mask.mean())
-                if frac == 0.0:
+                inside = int(np.count_nonzero(mask))
+                if inside == 0:
                     continue
-                if frac > 0.3:  # wide lobe: evaluate densely, no index arrays
+                if is_dense(inside, mask.size):  # wide lobe: evaluate densely, no index arrays
                     val = _integrand(lobe, d[None], v[None, None], nrm[idx][:, None], c[:, None])
                     val = np.where(mask[..., None], val, 0.0)
                     if val.shape[-1] == 1:
@@ -222,7 +283,7 @@ def reference_view(
     size: int,
     *,
     truncation: float = DEFAULT_TRUNCATION,
-    chunk_elems: int = 500_000,
+    chunk_elems: int = CHUNK_ELEMS,
 ) -> FloatArray:
     """Brute-force reflection map for view V indexed by R, (S, 2S, 3) — the reference for ``shrm.reflect``.
 

@@ -1,7 +1,7 @@
 """The accuracy–time explorer (``relight.tradeoff``) and ``relight tradeoff``.
 
 Small maps (sample maps area-averaged to 32 x 64 and 16 x 32) and few settings keep these quick. The cost model's
-built-in constants are used (no calibration run); its accuracy is tested in ``test_costmodel.py``.
+built-in constants are used (no calibration run); its accuracy is tested in ``tests/relight/test_costmodel.py``.
 """
 
 from __future__ import annotations

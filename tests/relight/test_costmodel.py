@@ -17,6 +17,7 @@ import ducc0
 import numpy as np
 import pytest
 
+import relight
 from relight import costmodel
 from relight.brdf import lpq
 from relight.brdf.models import KajiyaKay, Microfacet
@@ -182,7 +183,7 @@ def test_cache_round_trip_keyed_by_machine_and_version(tmp_path: Path, monkeypat
         cal.constants["call"] = 1e-3 * calls[0]
         return cal
 
-    monkeypatch.setattr(costmodel, "calibrate", fake_calibrate)
+    monkeypatch.setattr(costmodel.calibration, "calibrate", fake_calibrate)
     a = costmodel.load_calibration(tmp_path)
     path = costmodel.cache_path(tmp_path)
     assert calls[0] == 1 and path.is_file() and a.calibrated
@@ -190,7 +191,7 @@ def test_cache_round_trip_keyed_by_machine_and_version(tmp_path: Path, monkeypat
     b = costmodel.load_calibration(tmp_path)  # from the file, not calibrated again
     assert calls[0] == 1 and b.constants == a.constants and b.created == "run 1"
     # another relight version: another file, a new calibration
-    monkeypatch.setattr(costmodel, "__version__", "999.0")
+    monkeypatch.setattr(relight, "__version__", "999.0")
     costmodel.forget()
     c = costmodel.load_calibration(tmp_path)
     assert calls[0] == 2 and c.created == "run 2" and costmodel.cache_path(tmp_path) != path
@@ -236,3 +237,29 @@ def test_quick_calibration_fits_positive_constants_and_predicts_monotone_costs()
         preds.append(cal.predict(feats).seconds)
     assert all(np.isfinite(p) and p > 0 for p in preds)
     assert preds[0] < preds[1] < preds[2], preds
+
+
+def test_angular_view_counts_walk_the_blocks_reference_view_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One block plan: the pairs reference_view visits (recorded block by block as it runs) equal the pairs the cost
+    model counts, also with blocks small enough to split every group's rows (exact: both walk block_plan)."""
+    from relight import reference_view as rv
+
+    visited: list[int] = []
+    real_blocks = rv.ViewGroup.blocks
+
+    def recording(self: rv.ViewGroup) -> Any:
+        for sl in real_blocks(self):
+            visited.append(self.outputs.size * (sl.stop - sl.start))
+            yield sl
+
+    monkeypatch.setattr(rv.ViewGroup, "blocks", recording)
+    view = np.array([0.2, 0.5, 0.8])
+    h = 16
+    for brdf, chunk in [(Microfacet(0.3), 2_000), (Microfacet(0.1), 500_000)]:
+        visited.clear()
+        rv.reference_view(random_env(h), brdf, view, 8, truncation=0.01, chunk_elems=chunk)
+        walked = sum(visited) * 2 * h
+        visited.clear()
+        pairs, _, _ = costmodel.angular_view_counts(brdf, view, h, 8, 0.01, chunk_elems=chunk)
+        assert walked > 0 and pairs == walked
+    assert rv.DENSE_FRACTION == 0.3 and rv.is_dense(31.0, 100) and not rv.is_dense(30.0, 100)
