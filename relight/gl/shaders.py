@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Final, Literal
 
 from relight import conventions, envmap, shrm
+from relight.envmap import display
 
 Target = Literal["330", "300 es"]
 
@@ -54,11 +55,11 @@ def constants() -> dict[str, float | int]:
         "SQRT2": shrm.SQRT2,
         "SH_Y00": shrm.Y00,
         "HALF_MAX": envmap.HALF_MAX,
-        "ACES_A": envmap._ACES_A,
-        "ACES_B": envmap._ACES_B,
-        "ACES_C": envmap._ACES_C,
-        "ACES_D": envmap._ACES_D,
-        "ACES_E": envmap._ACES_E,
+        "ACES_A": display.ACES_A,
+        "ACES_B": display.ACES_B,
+        "ACES_C": display.ACES_C,
+        "ACES_D": display.ACES_D,
+        "ACES_E": display.ACES_E,
         "LUMA_R": float(conventions.LUMINANCE_WEIGHTS[0]),
         "LUMA_G": float(conventions.LUMINANCE_WEIGHTS[1]),
         "LUMA_B": float(conventions.LUMINANCE_WEIGHTS[2]),
@@ -74,7 +75,7 @@ _SOURCES: Final = {
     "SQRT2": "relight.shrm.SQRT2",
     "SH_Y00": "relight.shrm.Y00 = 1 / sqrt(4 pi)",
     "HALF_MAX": "relight.envmap.HALF_MAX (largest finite IEEE binary16)",
-    "ACES_A": "relight.envmap._ACES_A (Narkowicz 2016)",
+    "ACES_A": "relight.envmap.display.ACES_A (Narkowicz 2016)",
     "LUMA_R": "relight.conventions.LUMINANCE_WEIGHTS (Rec. 709)",
     "CENTER_R": "relight.gl.shaders.CENTERS",
     "FRAME_MAP": "relight.gl.shaders.FRAMES",

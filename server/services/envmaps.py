@@ -18,12 +18,14 @@ import asyncio
 import logging
 from collections.abc import AsyncIterator
 from pathlib import Path
-from typing import Any, Final
+from typing import Any
 
 from distributed.scheduler import KilledWorker
 from sqlalchemy import select
 
 from relight.client.models import EnvmapPublic
+from relight.envmap.formats import ACCEPTED, sniff
+from relight.envmap.formats import SNIFF_BYTES as _SNIFF_BYTES
 from relight.errors import InputError
 from relight.server.cluster import Cluster
 from relight.server.config import Settings
@@ -43,18 +45,6 @@ from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore, BlobWriter
 
 log = logging.getLogger("relight.server")
 
-#: File signatures accepted (OpenEXR spec "magic number"; Radiance "#?" program line; PNG and JPEG SOI).
-MAGIC: Final = {b"\x76\x2f\x31\x01": "exr", b"#?": "hdr", b"\x89PNG\r\n\x1a\n": "png", b"\xff\xd8\xff": "jpeg"}
-_SNIFF_BYTES: Final = 8
-ACCEPTED: Final = "OpenEXR (.exr), Radiance RGBE (.hdr), PNG or JPEG"
-
-
-def sniff(head: bytes) -> str | None:
-    """Format from the first bytes, or None."""
-    for magic, fmt in MAGIC.items():
-        if head.startswith(magic):
-            return fmt
-    return None
 
 
 def check_header_size(width: int, height: int, max_pixels: int) -> None:

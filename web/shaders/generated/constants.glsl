@@ -3,7 +3,7 @@
 #define SQRT2 1.4142135623730951  // relight.shrm.SQRT2
 #define SH_Y00 0.28209479177387814  // relight.shrm.Y00 = 1 / sqrt(4 pi)
 #define HALF_MAX 65504.0  // relight.envmap.HALF_MAX (largest finite IEEE binary16)
-#define ACES_A 2.51  // relight.envmap._ACES_A (Narkowicz 2016)
+#define ACES_A 2.51  // relight.envmap.display.ACES_A (Narkowicz 2016)
 #define ACES_B 0.03
 #define ACES_C 2.43
 #define ACES_D 0.59

@@ -25,7 +25,7 @@ from PIL import Image
 from relight import envmap as E
 from relight.errors import InputError
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 SAMPLES = ["city", "courtyard", "forest", "studio", "sunset"]
 FloatArray = NDArray[np.float64]
 
@@ -359,7 +359,7 @@ def test_hdr_rle_hand_built() -> None:
 
 def test_hdr_reader_is_fast() -> None:
     rgb = np.random.default_rng(6).random((512, 1024, 3)) ** 4 * 100
-    from relight import hdr_rgbe
+    from relight.envmap import rgbe as hdr_rgbe
 
     data = hdr_rgbe.encode(rgb)
     t0 = time.perf_counter()
@@ -369,7 +369,7 @@ def test_hdr_reader_is_fast() -> None:
 
 
 def test_hdr_bad_files() -> None:
-    from relight import hdr_rgbe
+    from relight.envmap import rgbe as hdr_rgbe
 
     data = hdr_rgbe.encode(np.ones((16, 32, 3)))
     with pytest.raises(InputError, match=r"truncated Radiance HDR data at scanline \d+ of 16"):
@@ -639,7 +639,10 @@ def test_zero_size_images() -> None:
         E.probe(crafted_exr_header(0, 0))
     with pytest.raises(InputError, match="empty Radiance HDR image"):
         E.probe(b"#?RADIANCE\n\n-Y 0 +X 0\n")
-    with pytest.raises(InputError, match="empty PNG image"):
+    with pytest.raises(InputError, match="empty or unsupported PNG image"):  # a complete file, zero width
+        E.probe(b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", struct.pack(">IIBBBBB", 0, 10, 8, 2, 0, 0, 0))
+                + png_chunk(b"IDAT", zlib.compress(b"")) + png_chunk(b"IEND", b""))
+    with pytest.raises(InputError, match="truncated PNG file"):  # the file ends after IHDR
         E.probe(b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", struct.pack(">IIBBBBB", 0, 10, 8, 2, 0, 0, 0)))
     with pytest.raises(InputError, match="cannot be empty|width"):
         E.envmap_from_array(np.zeros((0, 0, 3)))

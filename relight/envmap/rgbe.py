@@ -1,4 +1,5 @@
-"""Radiance RGBE (``.hdr``) reading and writing.
+"""Radiance RGBE (``.hdr``) reading and writing (own reader and writer: no maintained Python library reads RGBE
+without pulling in a large imaging stack, and the header parser must stop at a size limit before decoding).
 
 Source: Greg Ward, "Real Pixels" (Graphics Gems II, 1991) and the Radiance file-format notes
 (Radiance reference manual, "Picture file format"; ``src/common/color.c`` and ``header.c`` of Radiance 5).
@@ -26,13 +27,17 @@ are the original radiance (Radiance manual, "EXPOSURE").
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from relight.envmap.formats import ImageHeader, NeedMoreData, check_rgb_image
 from relight.errors import InputError
+
+log = logging.getLogger("relight.envmap")
 
 #: Radiance exponent bias (``COLXS`` in ``color.h``).
 _COLXS = 128
@@ -47,10 +52,6 @@ MAX_HEADER_BYTES = 1 << 20
 SIGNATURES = (b"#?RADIANCE", b"#?RGBE")
 
 
-class NeedMoreData(Exception):
-    """Internal: the buffer ended inside the header (the caller may read more and retry)."""
-
-
 @dataclass(frozen=True)
 class HdrHeader:
     """What the header and resolution line of a Radiance file say."""
@@ -59,6 +60,11 @@ class HdrHeader:
     height: int
     exposure: float  # product of all EXPOSURE values (1.0 if none)
     data_offset: int  # byte offset of the first scanline
+
+    @property
+    def image(self) -> ImageHeader:
+        """The format-independent header: RGB, 8-bit mantissas with a shared exponent."""
+        return ImageHeader("hdr", self.width, self.height, 3, 8)
 
 
 def parse_header(buf: bytes, *, complete: bool = True) -> HdrHeader:
@@ -314,3 +320,17 @@ def write(path: str | os.PathLike[str], rgb: NDArray[np.floating]) -> None:
     """Write an (H, W, 3) non-negative finite array to ``path`` as Radiance RGBE with new-style RLE."""
     with open(path, "wb") as fh:
         fh.write(encode(rgb))
+
+
+def write_hdr(path: str | os.PathLike[str], rgb: NDArray[np.floating]) -> None:
+    """Write (H, W, 3) linear RGB as Radiance RGBE with new-style RLE scanlines.
+
+    RGBE has no sign: negative values are written as 0 (the count is logged). Non-finite values are an error.
+    """
+    arr = np.asarray(check_rgb_image(rgb, "the image"), dtype=np.float64)
+    if not np.isfinite(arr).all():
+        raise InputError(f"cannot write {int(np.sum(~np.isfinite(arr)))} non-finite values to a Radiance HDR file")
+    n = int(np.sum(arr < 0))
+    if n:
+        log.warning("write_hdr %s: %d negative values written as 0", path, n)
+    write(path, np.maximum(arr, 0.0))
