@@ -44,14 +44,14 @@ def _parse_order(text: str) -> tuple[int, int | None]:
 
 
 def _load_env(path: str) -> Any:
-    from relight.envmap import read_envmap
+    from relight.envmap.environment import read_envmap
 
     return read_envmap(path)
 
 
 def cmd_prefilter(args: argparse.Namespace) -> int:
     from relight.brdf.spec import parse_brdf
-    from relight.envmap import write_exr
+    from relight.envmap.exr import write_exr
     from relight.prefilter import prefilter_radial
 
     brdf = parse_brdf(args.brdf)
@@ -83,7 +83,7 @@ def cmd_prefilter(args: argparse.Namespace) -> int:
 
 def cmd_reference(args: argparse.Namespace) -> int:
     from relight.brdf.spec import parse_brdf
-    from relight.envmap import write_exr
+    from relight.envmap.exr import write_exr
     from relight.reference import reference_radial
 
     brdf = parse_brdf(args.brdf)
@@ -104,7 +104,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
 
 
 def _read_map(path: str) -> Any:
-    from relight.envmap import read_image
+    from relight.envmap.environment import read_image
 
     pixels, _ = read_image(path)
     return np.asarray(pixels, dtype=np.float64)
@@ -128,7 +128,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    from relight.envmap import read_envmap
+    from relight.envmap.environment import read_envmap
     from relight.prefilter import project_lighting
 
     env = read_envmap(args.envmap)

@@ -43,7 +43,8 @@ def _floats(text: str | None, what: str) -> list[float] | None:
 
 
 def _load_pixels(path: str, rows: int | None) -> tuple[Any, int]:
-    from relight.envmap import read_envmap, resample_latlong
+    from relight.envmap.environment import read_envmap
+    from relight.envmap.resample import resample_latlong
 
     env = read_envmap(path)
     px = np.asarray(env.pixels, dtype=np.float64)
@@ -89,7 +90,7 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
 
 
 def _scene_and_pixels(path: str) -> tuple[Any, Any]:
-    from relight.envmap import read_envmap
+    from relight.envmap.environment import read_envmap
     from relight.planner import load_scene
 
     scene = load_scene(path)

@@ -77,7 +77,7 @@ def reference_view(args: argparse.Namespace, brdf: Any, env: Any) -> int:
     """``relight reference --view``: the angular-domain reflection map for one distant view, indexed by R."""
     import time
 
-    from relight.envmap import write_exr
+    from relight.envmap.exr import write_exr
     from relight.reference import DEFAULT_TRUNCATION
     from relight.reference_view import reference_view as ref
 
@@ -97,7 +97,7 @@ def reference_view(args: argparse.Namespace, brdf: Any, env: Any) -> int:
 
 def cmd_reflect(args: argparse.Namespace) -> int:
     """``relight reflect``: the eq. 12 reflection map (indexed by R) of an SHRM file for a distant view (§7.5)."""
-    from relight.envmap import write_exr
+    from relight.envmap.exr import write_exr
     from relight.shrm import reflect
     from relight.shrm_io import read_shrm
 
@@ -113,7 +113,8 @@ def cmd_reflect(args: argparse.Namespace) -> int:
 
 def cmd_render(args: argparse.Namespace) -> int:
     """``relight render``: a sphere rendered with an SHRM file (global eq. 12, or local eq. 6 with ``--local``)."""
-    from relight.envmap import write_exr, write_png_preview
+    from relight.envmap.display import write_png_preview
+    from relight.envmap.exr import write_exr
     from relight.shrm import render_sphere
     from relight.shrm_io import read_shrm
 

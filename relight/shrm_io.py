@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight import __version__
-from relight.envmap import read_exr_layers, write_exr_layers
+from relight.envmap.exr import read_exr_layers, write_exr_layers
 from relight.errors import InputError
 from relight.shrm import SHRM, Y00, SHRMComponent, terms_for
 

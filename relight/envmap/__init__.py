@@ -17,7 +17,7 @@ One module per object:
 
 Every decoder returns linear float32 RGB, shape (H, W, 3), row 0 at the top of the image.
 
-Upload safety (docs/conventions.md): call :func:`probe` (header only) and pass ``max_pixels`` before decoding
+Upload safety (docs/facts.md, "Upload safety"): call :func:`probe` (header only) and pass ``max_pixels`` before decoding
 anything untrusted; EXR channels are read separately (``separate_channels=True``), never combined by the
 bindings. Run untrusted decodes in a worker process under memory and time limits.
 

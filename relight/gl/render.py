@@ -115,7 +115,7 @@ class Renderer:
             raise InputError(f"coefficients have shape {coeffs.shape}, expected {expect}")
         def array_texture(layers: NDArray[np.floating], lay: layout_mod.Layout) -> Any:
             if dtype == "f2":  # clamp to the half-float range (65504) instead of overflowing to inf
-                from relight.envmap import to_half_safe
+                from relight.envmap.exr import to_half_safe
 
                 data = np.ascontiguousarray(to_half_safe(np.asarray(layers))[0], dtype="<f2")
             else:

@@ -26,7 +26,8 @@ MAX_REFERENCE_SIZE = 256
 
 
 def _read_map(envmap_path: str, max_pixels: int | None, rows: int | None) -> NDArray[np.float32]:
-    from relight.envmap import read_envmap, resample_latlong
+    from relight.envmap.environment import read_envmap
+    from relight.envmap.resample import resample_latlong
 
     env = read_envmap(envmap_path, max_pixels=max_pixels)
     px = env.pixels
@@ -64,7 +65,7 @@ def envmap_texture(envmap_path: str, rows: int, *, max_pixels: int | None = None
     """The map as little-endian float16 RGB (rows, 2 rows, 3) (its own size if smaller), row 0 = +Y; returns the
     bytes, the height and the width. Values beyond the half range are clamped (``relight.envmap.to_half_safe``).
     """
-    from relight.envmap import to_half_safe
+    from relight.envmap.exr import to_half_safe
 
     if not 1 <= rows <= 4096:
         raise InputError(f"rows must be in 1..4096, got {rows}")
@@ -77,7 +78,7 @@ def encode_png(image: NDArray[np.floating], *, exposure: float = 0.0, operator: 
     """8-bit sRGB PNG through the project's display transform (``relight.envmap.tonemap``)."""
     from PIL import Image
 
-    from relight.envmap import tonemap
+    from relight.envmap.display import tonemap
 
     buf = BytesIO()
     Image.fromarray(tonemap(np.asarray(image), exposure=exposure, operator=operator), "RGB").save(buf, format="PNG")
@@ -86,7 +87,7 @@ def encode_png(image: NDArray[np.floating], *, exposure: float = 0.0, operator: 
 
 def encode_exr(image: NDArray[np.floating], attributes: dict[str, str] | None = None) -> bytes:
     """Float32 RGB EXR bytes (``relight.envmap.write_exr``, ZIP compression)."""
-    from relight.envmap import write_exr
+    from relight.envmap.exr import write_exr
 
     fd, name = tempfile.mkstemp(suffix=".exr")
     os.close(fd)

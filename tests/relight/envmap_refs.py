@@ -42,7 +42,7 @@ def srgb_oetf(x: NDArray[np.floating]) -> FloatArray:
 
 
 def latlong_dirs(h: int) -> FloatArray:
-    """Pixel-centre directions of an h x 2h map, from FACTS.md (three.js equirectUv, +Y up)."""
+    """Pixel-centre directions of an h x 2h map, from docs/conventions.md (three.js equirectUv, +Y up)."""
     w = 2 * h
     elev = np.pi / 2 - (np.arange(h) + 0.5) * np.pi / h
     phi = ((np.arange(w) + 0.5) / w - 0.5) * 2 * np.pi

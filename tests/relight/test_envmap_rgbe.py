@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from relight import envmap as E
+from relight.envmap import rgbe
 from relight.errors import InputError
 
 
@@ -66,9 +67,7 @@ def test_hdr_rle_hand_built() -> None:
 
 def test_hdr_reader_is_fast() -> None:
     rgb = np.random.default_rng(6).random((512, 1024, 3)) ** 4 * 100
-    from relight.envmap import rgbe as hdr_rgbe
-
-    data = hdr_rgbe.encode(rgb)
+    data = rgbe.encode(rgb)
     t0 = time.perf_counter()
     back, _ = E.read_image(data)
     assert time.perf_counter() - t0 < 1.0
@@ -76,9 +75,7 @@ def test_hdr_reader_is_fast() -> None:
 
 
 def test_hdr_bad_files() -> None:
-    from relight.envmap import rgbe as hdr_rgbe
-
-    data = hdr_rgbe.encode(np.ones((16, 32, 3)))
+    data = rgbe.encode(np.ones((16, 32, 3)))
     with pytest.raises(InputError, match=r"truncated Radiance HDR data at scanline \d+ of 16"):
         E.read_image(data[:-20])
     with pytest.raises(InputError, match="orientation"):

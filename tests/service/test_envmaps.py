@@ -41,9 +41,13 @@ def exr_header_only(width: int, height: int) -> bytes:
 
 
 def png_header_only(width: int, height: int) -> bytes:
+    """Signature, IHDR, an empty IDAT and IEND: the chunks a PNG reader walks to learn the size, no pixel data."""
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
     ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
-    chunk = struct.pack(">I", len(ihdr)) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
-    return b"\x89PNG\r\n\x1a\n" + chunk
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", b"") + chunk(b"IEND", b"")
 
 
 def test_upload_returns_metadata_and_is_idempotent(client: RelightClient, http: httpx.Client,
