@@ -14,6 +14,9 @@ by the tests (``tests/test_tradeoff_mitsuba.py``, ``tests/test_mitsuba_oracle.py
 * ``TorranceSparrow(alpha, "ggx", fresnel="none")`` (and ``GGX(alpha)``) = ``roughconductor``,
   ``distribution="ggx"``, ``material="none"`` (exact Smith G1 for GGX in both);
 * ``Lambert(albedo)`` = ``diffuse`` with ``reflectance = albedo`` (``f_r = albedo / pi`` in both).
+* ``AnisotropicTorranceSparrow(alpha_u, alpha_v, d, fresnel="none")`` (seed 003, ``relight.brdf.anisotropic``) =
+  ``roughconductor`` with ``alpha_u`` along the shading frame's s (relight's tangent t), ``alpha_v`` along t
+  (relight's bitangent b), ``material="none"`` (``tests/test_anisotropic_brdf.py``).
 
 Everything else has none: Phong has no Mitsuba 3 plugin, Schlick's and the conductor Fresnel terms are not
 Mitsuba's (its ``roughconductor`` uses the exact conductor Fresnel of named materials with spectral IORs), and
@@ -126,9 +129,13 @@ def twin(brdf: Any) -> dict[str, Any] | None:
 
     The dictionary holds only JSON values, so it can be recorded as it is.
     """
+    from relight.brdf.anisotropic import AnisotropicTorranceSparrow
     from relight.brdf.models import TorranceSparrow
     from relight.brdf.radial import Lambert
 
+    if isinstance(brdf, AnisotropicTorranceSparrow) and brdf.fresnel == "none":
+        return {"type": "roughconductor", "distribution": brdf.distribution, "alpha_u": float(brdf.alpha_u),
+                "alpha_v": float(brdf.alpha_v), "material": "none"}
     if isinstance(brdf, TorranceSparrow) and brdf.fresnel == "none":
         return {"type": "roughconductor", "distribution": brdf.distribution, "alpha": float(brdf.alpha),
                 "material": "none"}

@@ -11,6 +11,11 @@ e.g. ``lambert``, ``phong:s=32``, ``microfacet:sigma=0.2``, ``torrance-sparrow:a
 ``ggx:alpha=0.3,fresnel=schlick,f0=0.04``, ``blinn-phong:s=64``, ``lafortune:preset=housepaint-blue``,
 ``ward:alpha=0.1,rho_s=0.05,rho_d=0.5``, ``oren-nayar:sigma=0.3``, ``kajiya-kay:s=32``,
 ``merl:gold.binary``, ``measured:table.npz``, ``lobe1d:lobe.json``, ``lambert:albedo=0.5+phong:s=64``.
+Anisotropic forms (seed 003; ``relight.brdf.anisotropic``, tangent-frame BRDFs):
+``torrance-sparrow:alpha_u=0.1,alpha_v=0.4,distribution=ggx,fresnel=none``,
+``ashikhmin-shirley:nu=48,nv=16,rs=0.05,rd=0``, ``ward:alpha_x=0.1,alpha_y=0.3,rho_d=0,rho_s=1``. Only
+:func:`parse_frame_brdf` (which returns a :class:`~relight.brdf.frame.FrameBRDF`, every isotropic lobe adapted)
+accepts them; :func:`parse_brdf` raises ``InputError`` for them (SHRMs cannot represent anisotropy).
 A ``+`` inside a path is kept when what follows it does not start with a known kind.
 
 A string ending in ``.json`` that does not start with ``kind:`` (or an ``os.PathLike``) is a JSON file holding a
@@ -34,7 +39,9 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+from relight.brdf.anisotropic import AnisotropicTorranceSparrow, AshikhminShirley, WardAnisotropic, check_exclusive
 from relight.brdf.base import Lobe
+from relight.brdf.frame import FrameBRDF, FrameSum, as_frame_brdf
 from relight.brdf.measured import MERLBRDF, TabulatedBRDF
 from relight.brdf.models import (
     GGX,
@@ -62,6 +69,8 @@ _KEYS: dict[str, dict[str, str]] = {
     "microfacet": {"sigma": "number"},
     "torrance-sparrow": {
         "alpha": "number",
+        "alpha_u": "number",
+        "alpha_v": "number",
         "distribution": "word",
         "fresnel": "word",
         "f0": "color",
@@ -71,7 +80,8 @@ _KEYS: dict[str, dict[str, str]] = {
     "ggx": {"alpha": "number", "fresnel": "word", "f0": "color", "eta": "color", "k": "color"},
     "blinn-phong": {"s": "number"},
     "lafortune": {"preset": "word", "diffuse": "color", "lobes": "any"},
-    "ward": {"rho_d": "color", "rho_s": "color", "alpha": "number"},
+    "ward": {"rho_d": "color", "rho_s": "color", "alpha": "number", "alpha_x": "number", "alpha_y": "number"},
+    "ashikhmin-shirley": {"nu": "number", "nv": "number", "rs": "color", "rd": "color"},
     "oren-nayar": {"sigma": "number", "albedo": "color"},
     "kajiya-kay": {"s": "number"},
     "merl": {"path": "path", "lookup": "word"},
@@ -82,7 +92,21 @@ _PATH_KINDS = ("merl", "measured", "lobe1d")
 VALID_KINDS = sorted([*_KEYS, "sum"])
 
 
-def _build(kind: str, kw: dict[str, Any]) -> Lobe:
+def _build(kind: str, kw: dict[str, Any]) -> Lobe | FrameBRDF:
+    if kind == "torrance-sparrow":
+        check_exclusive(kind, kw, "alpha", ("alpha_u", "alpha_v"))
+    if kind == "ward":
+        check_exclusive(kind, kw, "alpha", ("alpha_x", "alpha_y"))
+    frame_makers: dict[str, Callable[..., FrameBRDF]] = {"ashikhmin-shirley": AshikhminShirley}
+    if kind == "torrance-sparrow" and "alpha_u" in kw:
+        frame_makers[kind] = AnisotropicTorranceSparrow
+    if kind == "ward" and "alpha_x" in kw:
+        frame_makers[kind] = WardAnisotropic
+    if kind in frame_makers:
+        try:
+            return frame_makers[kind](**kw)
+        except TypeError as exc:  # a required parameter is missing
+            raise InputError(f"{kind}: {exc}; valid keys are {sorted(_KEYS[kind])}") from None
     makers: dict[str, Callable[..., Lobe]] = {
         "lambert": Lambert,
         "phong": Phong,
@@ -185,7 +209,7 @@ def _split_terms(spec: str) -> list[str]:
     return terms
 
 
-def _parse_term(term: str) -> Lobe:
+def _parse_term(term: str) -> Lobe | FrameBRDF:
     text = term.strip()
     if not text:
         raise InputError(f"empty BRDF term; valid kinds are {VALID_KINDS}")
@@ -215,7 +239,7 @@ def _resolve(base: Path | None, value: Any) -> Any:
     return os.fspath(p if p.is_absolute() else base / p)
 
 
-def _from_dict(d: Mapping[str, Any], base: Path | None) -> Brdf:
+def _from_dict(d: Mapping[str, Any], base: Path | None) -> Brdf | FrameBRDF:
     if not isinstance(d, Mapping):
         raise InputError(f"a BRDF spec entry must be an object with a 'kind', got {type(d).__name__}")
     if "kind" not in d:
@@ -229,9 +253,14 @@ def _from_dict(d: Mapping[str, Any], base: Path | None) -> Brdf:
         if set(rest) != {"lobes"} or not isinstance(rest["lobes"], list):
             raise InputError(f"sum: needs exactly a 'lobes' list, got keys {sorted(rest)}")
         lobes = [_from_dict(x, base) for x in rest["lobes"]]
+        if any(isinstance(lobe, FrameBRDF) for lobe in lobes):
+            return _frame_sum(lobes)
         flat: list[Lobe] = []
         for lobe in lobes:
-            flat.extend(lobe.lobes if isinstance(lobe, SumBRDF) else [lobe])
+            if isinstance(lobe, SumBRDF):
+                flat.extend(lobe.lobes)
+            elif isinstance(lobe, Lobe):
+                flat.append(lobe)
         return SumBRDF(flat)
     keys = _KEYS[kind]
     unknown = sorted(set(rest) - set(keys))
@@ -252,27 +281,62 @@ def _from_dict(d: Mapping[str, Any], base: Path | None) -> Brdf:
     return _build(kind, rest)
 
 
+def _isotropic_only(obj: Brdf | FrameBRDF) -> Brdf:
+    if isinstance(obj, FrameBRDF):
+        raise InputError(
+            f"{obj.kind}: this BRDF is anisotropic (it needs a tangent frame); SHRMs cannot represent it, only the "
+            "SH-table path (relight.brdf.spec.parse_frame_brdf, `relight sh-table`) accepts it"
+        )
+    return obj
+
+
+def _frame_sum(terms: list[Any]) -> FrameBRDF:
+    flat: list[FrameBRDF] = []
+    for term in terms:
+        f = as_frame_brdf(term)
+        flat.extend(f.terms if isinstance(f, FrameSum) else [f])
+    return flat[0] if len(flat) == 1 else FrameSum(flat)
+
+
+def parse_frame_brdf(spec: str | Mapping[str, Any] | list[Any] | os.PathLike[str]) -> FrameBRDF:
+    """Any BRDF spec (isotropic, anisotropic or measured) as a :class:`~relight.brdf.frame.FrameBRDF`: the forms of
+    :func:`parse_brdf` plus the anisotropic ones (module docstring); isotropic lobes come adapted
+    (:class:`~relight.brdf.frame.LobeAdapter`) and sums as :class:`~relight.brdf.frame.FrameSum`."""
+    return _frame_sum([_parse_any(spec)])
+
+
 def parse_brdf(spec: str | Mapping[str, Any] | list[Any] | os.PathLike[str]) -> Brdf:
     """A lobe or a :class:`SumBRDF` from a spec string, a dict / list of dicts, or a JSON file (module docstring)."""
+    return _isotropic_only(_parse_any(spec))
+
+
+def _parse_any(spec: str | Mapping[str, Any] | list[Any] | os.PathLike[str]) -> Brdf | FrameBRDF:
     path: Path | None = None
     if isinstance(spec, os.PathLike):
         path = Path(spec)
     elif isinstance(spec, str) and spec.strip().lower().endswith(".json") and not _starts_term(spec):
         path = Path(spec.strip())
     if path is not None:
-        return parse_brdf_data(_read_json(path, "brdf spec"), path.parent)
+        return _data_any(_read_json(path, "brdf spec"), path.parent)
     if isinstance(spec, (Mapping, list)):
-        return parse_brdf_data(spec, None)
+        return _data_any(spec, None)
     if not isinstance(spec, str):
         raise InputError(f"a BRDF spec must be a string, a dict or a JSON file path, got {type(spec).__name__}")
     if not spec.strip():
         raise InputError(f"empty BRDF spec; valid kinds are {VALID_KINDS}")
-    lobes = [_parse_term(t) for t in _split_terms(spec)]
+    terms = [_parse_term(t) for t in _split_terms(spec)]
+    lobes = [t for t in terms if isinstance(t, Lobe)]
+    if len(lobes) < len(terms):
+        return _frame_sum(terms)
     return lobes[0] if len(lobes) == 1 else SumBRDF(lobes)
 
 
 def parse_brdf_data(data: Any, base: Path | None = None) -> Brdf:
     """Dict or list-of-dicts form of :func:`parse_brdf`; relative paths resolve against ``base``."""
+    return _isotropic_only(_data_any(data, base))
+
+
+def _data_any(data: Any, base: Path | None) -> Brdf | FrameBRDF:
     if isinstance(data, list):
         return _from_dict({"kind": "sum", "lobes": data}, base)
     if isinstance(data, Mapping):
@@ -288,12 +352,12 @@ def _sorted(obj: Any) -> Any:
     return obj
 
 
-def brdf_to_spec(obj: Brdf) -> dict[str, Any]:
+def brdf_to_spec(obj: Brdf | FrameBRDF) -> dict[str, Any]:
     """Canonical dict of a lobe or sum: ``{"kind": ..., **params}`` with keys sorted at every level.
 
     ``parse_brdf(brdf_to_spec(x))`` rebuilds an equivalent object. Raises ``InputError`` for objects that cannot
     be serialised (a :class:`Lobe1D` given as a callable, an unsaved :class:`TabulatedBRDF`).
     """
-    if not isinstance(obj, (Lobe, SumBRDF)):
+    if not isinstance(obj, (Lobe, SumBRDF, FrameBRDF)):
         raise InputError(f"not a BRDF: {type(obj).__name__}")
     return dict(_sorted(obj.spec()))
