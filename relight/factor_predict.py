@@ -1,0 +1,132 @@
+"""Numbers of in-out terms K predicted without an SVD (Mahajan, Tseng & Ramamoorthi 2008, §3.3, §3.4, §4).
+
+* **Radial lobes about R** (Phong and any ``u(R . L)``): over the sphere the SVD *is* the SH expansion (eq. 9):
+  sigma = |F_l| with multiplicity 2l + 1, ``F_l = Lambda_l rho_l`` = relight's transfer factor
+  (``relight.brdf.coefficients.radial_transfer``), and the total energy is ``4 pi int u^2``. So the sphere's K at any
+  threshold follows exactly from relight's spectrum (whole bands up to the order search's F plus part of band F).
+  Over the visible hemisphere the paper's Fig. 5 observes l + 1 (instead of 2l + 1) values near F_l per band:
+  the same count with multiplicity l + 1 is the hemisphere prediction (eq. 13's "(l* + 1)^2 / 2", band by band).
+  Lobes about N (Lambert) are rank one: K = 1.
+* **Other isotropic BRDFs** (half-angle lobes, microfacet models, measured tables): §4's 1-D recipe. The factored
+  kernel is averaged over theta_d in [0, ``THETA_D_MAX``] and phi_d to a curve in theta_h (the paper omits grazing
+  theta_d); the curve, as a lobe ``u(cos theta_h)``, is SH-transformed with relight's order search and l* is the
+  order capturing the threshold's energy. The paper reads ``K ~ (l*)^2 / 4``; the block SVD gives
+  ``K ~ HALF_ANGLE_SLOPE[tau] (l*)^2`` instead (calibration in bench/factorize.py). l* is always computed,
+  never taken from the paper's printed ``l* ~ 1 / (2 sigma^2)``, which contradicts its own examples.
+
+The paper's closed forms for Phong (eq. 12: K ~ 6 s; Fig. 3A: 5 s on the sphere, 2.5 s on the hemisphere) are
+reported alongside.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from relight.brdf.base import IsotropicBRDF, Lobe, RadialLobe
+from relight.brdf.coefficients import spectrum_for_tolerance
+from relight.brdf.measured import half_diff_to_dirs
+from relight.brdf.radial import Lobe1D, Phong
+from relight.errors import InputError
+from relight.factor_kernel import DOMAINS, make_kernel
+from relight.factorization import THRESHOLDS, terms_for
+
+#: Largest theta_d averaged into the theta_h curve (radians): 60 deg leaves out the grazing differences whose
+#: measured data are "incomplete or noisy" (§4); the paper gives no value.
+THETA_D_MAX = np.radians(60.0)
+#: Samples of the theta_h curve (square-root spacing as MERL's, dense near theta_h = 0) and of theta_d, phi_d.
+N_THETA_H, N_THETA_D, N_PHI_D = 512, 24, 24
+#: Energy fraction left out when the radial spectrum is computed (its tail beyond is negligible for every count).
+SPECTRUM_TAIL = 1e-8
+#: K / (l*)^2 of eq. 14's half-angle lobe on the hemisphere, from the converged block SVD (bench/factorize.py,
+#: sigma = 0.15 ... 0.4, n_theta >= 200); the paper's "(l*)^2 / 4" is 0.25.
+HALF_ANGLE_SLOPE: dict[float, float] = {0.9: 0.24, 0.95: 0.27, 0.99: 0.33}
+
+
+def _mean_lobe(lobe: RadialLobe) -> RadialLobe:
+    if lobe.channels == 1:
+        return lobe
+    return Lobe1D(func=lambda t: np.asarray(lobe.u(t), dtype=np.float64).mean(axis=-1), center=lobe.center)
+
+
+def radial_terms(lobe: RadialLobe, domain: str, thresholds: tuple[float, ...] = THRESHOLDS) -> dict[str, Any]:
+    """K per threshold of a radial lobe from its SH spectrum (module docstring), with the order l* per threshold."""
+    if domain not in DOMAINS:
+        raise InputError(f"domain must be one of {', '.join(DOMAINS)}, got {domain!r}")
+    if lobe.center == "N":
+        return {"method": "rank-one", "terms": {t: 1 for t in thresholds}, "l_star": {t: 0 for t in thresholds}}
+    if lobe.center != "R":
+        raise InputError(f"{lobe.kind}: radial predictions need a lobe about R or N, got centre {lobe.center!r}")
+    mean = _mean_lobe(lobe)
+    spec, _ = spectrum_for_tolerance(mean, SPECTRUM_TAIL)
+    transfer = np.abs(spec.transfer[:, 0])
+    l = np.arange(transfer.size)
+    mult = 2 * l + 1 if domain == "sphere" else l + 1
+    values = np.sort(np.repeat(transfer, mult))[::-1]
+    total = 4.0 * np.pi * float(spec.total_energy[0]) if domain == "sphere" else float(np.sum(mult * transfer**2))
+    band = np.cumsum(transfer**2 * (2 * l + 1)) / (4.0 * np.pi * float(spec.total_energy[0]))
+    l_star = {t: int(np.searchsorted(band, t * (1.0 - 1e-12))) for t in thresholds}
+    return {"method": f"radial-spectrum-{domain}", "terms": terms_for(values, total, thresholds), "l_star": l_star}
+
+
+def theta_h_curve(brdf: Any, *, include_cosine: bool = True, theta_d_max: float = THETA_D_MAX) -> dict[str, Any]:
+    """The factored kernel averaged over theta_d in [0, theta_d_max] and phi_d: ``{"theta_h", "value"}`` (§4)."""
+    if not 0.0 < theta_d_max <= np.pi / 2:
+        raise InputError(f"theta_d_max must lie in (0, pi/2], got {theta_d_max}")
+    kernel = make_kernel(brdf, domain="hemisphere", include_cosine=include_cosine)
+    th = 0.5 * np.pi * np.linspace(0.0, 1.0, N_THETA_H) ** 2
+    td = (np.arange(N_THETA_D) + 0.5) * theta_d_max / N_THETA_D
+    pd = (np.arange(N_PHI_D) + 0.5) * np.pi / N_PHI_D
+    wi, wo = half_diff_to_dirs(th[:, None, None], td[None, :, None], pd[None, None, :])
+    ok = (wi[..., 2] > 0.0) & (wo[..., 2] > 0.0)
+    vals = np.where(ok, kernel.full(wi, wo), 0.0)
+    count = ok.sum(axis=(1, 2))
+    curve = np.where(count > 0, vals.sum(axis=(1, 2)) / np.maximum(count, 1), 0.0)
+    return {"theta_h": th, "value": curve}
+
+
+def half_angle_terms(
+    brdf: Any, *, include_cosine: bool = True, thresholds: tuple[float, ...] = THRESHOLDS
+) -> dict[str, Any]:
+    """§4's recipe: l* of the theta_h curve per threshold, K ~ slope (l*)^2 (calibrated) and the paper's (l*)^2/4."""
+    c = theta_h_curve(brdf, include_cosine=include_cosine)
+    t = np.cos(c["theta_h"])[::-1]
+    u = c["value"][::-1]
+    if not np.any(u > 0.0):
+        raise InputError("the BRDF is zero on the visible hemisphere: nothing to factor")
+    keep = np.concatenate([[True], np.diff(t) > 0.0])
+    lobe = Lobe1D(np.stack([t[keep], u[keep]], axis=1), center="R")
+    l_star: dict[float, int] = {}
+    for tau in thresholds:
+        _, order = spectrum_for_tolerance(lobe, 1.0 - tau)
+        l_star[tau] = order
+    slope = {tau: HALF_ANGLE_SLOPE.get(tau, 0.25) for tau in thresholds}
+    return {
+        "method": "half-angle-curve",
+        "terms": {tau: max(1, int(round(slope[tau] * l_star[tau] ** 2))) for tau in thresholds},
+        "paper_terms": {tau: max(1, int(round(l_star[tau] ** 2 / 4.0))) for tau in thresholds},
+        "l_star": l_star,
+        "slope": slope,
+    }
+
+
+def predict_terms(
+    brdf: Any, *, domain: str = "hemisphere", include_cosine: bool = True, thresholds: tuple[float, ...] = THRESHOLDS
+) -> dict[str, Any]:
+    """The cheapest applicable prediction of K per threshold (module docstring), with the paper's closed forms."""
+    lobes = brdf.lobes if hasattr(brdf, "lobes") and not isinstance(brdf, Lobe) else None
+    if isinstance(lobes, list) and len(lobes) == 1:
+        brdf = lobes[0]
+    if isinstance(brdf, RadialLobe) and include_cosine:
+        out = radial_terms(brdf, domain, thresholds)
+        if isinstance(brdf, Phong):
+            s = brdf.s
+            out["paper"] = {"eq12_6s": 6.0 * s, "fig3a": (5.0 if domain == "sphere" else 2.5) * s}
+        return out
+    if isinstance(brdf, (Lobe, IsotropicBRDF)) or isinstance(lobes, list):
+        out = half_angle_terms(brdf, include_cosine=include_cosine, thresholds=thresholds)
+        if domain == "sphere":
+            out["note"] = "calibrated on the hemisphere; the kernel is 0 outside it, so the sphere's K is the same"
+        return out
+    raise InputError(f"no SVD-free prediction for {type(brdf).__name__} (anisotropic or a callable): run the SVD")
