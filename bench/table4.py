@@ -84,7 +84,7 @@ def main() -> None:
                 "frequency_over_sh_floor": t_freq / t_floor,
                 "angular_error": relative_rms(ang, exact),
                 "frequency_error": relative_rms(res.map, exact),
-                "frequency_predicted_error": res.report["orders"]["rms_min_of_errors"],
+                "frequency_predicted_error": res.report.orders.rms_min_of_errors,
             }
         )
         print(f"s={s:g} done", flush=True)

@@ -292,7 +292,7 @@ class SceneObjectCreate(Strict):
 
 
 class SceneCreate(Strict):
-    """A scene for the planner (``relight.planner``): a map, objects, and a tolerance or a time budget."""
+    """A scene for the planner (``relight.planning``): a map, objects, and a tolerance or a time budget."""
 
     name: SceneName = "scene"
     environment: Digest

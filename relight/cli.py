@@ -67,16 +67,16 @@ def cmd_prefilter(args: argparse.Namespace) -> int:
         result: int = shrm_cli.prefilter_shrm(args, brdf, env, order, p_order)
         return result
     res = prefilter_radial(env.pixels, brdf, epsilon=args.epsilon, order=order, size=args.size)
-    res.report["input"].update(
+    res.report.input.update(
         {"path": str(args.envmap), "negatives_clamped": env.negatives_clamped, "min_negative": env.min_negative}
     )
-    write_exr(args.out, res.map.astype(np.float32), attributes={"relight.report": json.dumps(res.report)})
+    write_exr(args.out, res.map.astype(np.float32), attributes={"relight.report": json.dumps(res.report.to_json())})
     if args.report:
-        Path(args.report).write_text(json.dumps(res.report, indent=2))
-    o = res.report["orders"]
+        Path(args.report).write_text(json.dumps(res.report.to_json(), indent=2))
+    o = res.report.orders
     print(
-        f"wrote {args.out}: {res.map.shape[0]}x{res.map.shape[1]}, F_B={o['F_B']}, predicted relative RMS "
-        f"{o['rms_min_of_errors']:.3g} (App. B bound {o['rms_appendix_b']:.3g}), {res.report['total_seconds']:.3f} s"
+        f"wrote {args.out}: {res.map.shape[0]}x{res.map.shape[1]}, F_B={o.F_B}, predicted relative RMS "
+        f"{o.rms_min_of_errors:.3g} (App. B bound {o.rms_appendix_b:.3g}), {res.report.total_seconds:.3f} s"
     )
     return 0
 

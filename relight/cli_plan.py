@@ -91,7 +91,7 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
 
 def _scene_and_pixels(path: str) -> tuple[Any, Any]:
     from relight.envmap.environment import read_envmap
-    from relight.planner import load_scene
+    from relight.planning import load_scene
 
     scene = load_scene(path)
     env = read_envmap(scene.environment)
@@ -99,7 +99,7 @@ def _scene_and_pixels(path: str) -> tuple[Any, Any]:
 
 
 def cmd_scene_plan(args: argparse.Namespace) -> int:
-    from relight.planner import format_plan, plan_json, plan_scene
+    from relight.planning import format_plan, plan_json, plan_scene
 
     scene, px = _scene_and_pixels(args.scene)
     plan = plan_scene(scene, px)
@@ -108,7 +108,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
 
 
 def cmd_scene_run(args: argparse.Namespace) -> int:
-    from relight.planner import format_plan, plan_scene, run_plan
+    from relight.planning import format_plan, plan_scene, run_plan
 
     if args.preview < 0 or args.preview > 4096:
         raise InputError(f"--preview must lie in 0..4096, got {args.preview}")
@@ -164,7 +164,7 @@ def register(subparsers: Any) -> None:
     sc = subparsers.add_parser("scene", help="plan and run a scene: simulate only what it calls for")
     ssub = sc.add_subparsers(dest="scene_command", required=True)
     sp = ssub.add_parser("plan", help="print the plan: per object what is simulated, what is skipped and why")
-    sp.add_argument("scene", help="scene JSON file (relight.planner)")
+    sp.add_argument("scene", help="scene JSON file (relight.planning.scene)")
     sp.add_argument("--json", action="store_true", help="print the plan as JSON")
     sp.set_defaults(func=cmd_scene_plan)
     sr = ssub.add_parser("run", help="plan and execute a scene, sharing the lighting projection")

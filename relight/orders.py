@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from relight.reports import OrderReport
+
 FloatArray = NDArray[np.float64]
 
 
@@ -89,16 +91,11 @@ class OrderChoice:
     eps_min_of_errors: float  # min(eps_L, eps_rho) at F_B
     eps_appendix_b: float  # App. B bound at F_B
 
-    def as_dict(self) -> dict[str, float | int | None]:
-        return {
-            "F_L": self.F_L,
-            "F_rho": self.F_rho,
-            "F_B": self.F_B,
-            "P_B": self.P_B,
-            "epsilon_lighting": self.eps_lighting,
-            "epsilon_brdf": self.eps_brdf,
-            "epsilon_min_of_errors": self.eps_min_of_errors,
-            "epsilon_appendix_b": self.eps_appendix_b,
-            "rms_min_of_errors": rms_from_energy(self.eps_min_of_errors),
-            "rms_appendix_b": rms_from_energy(self.eps_appendix_b),
-        }
+    def report(self) -> OrderReport:
+        """The orders and predicted errors as a typed report (``relight.reports``; relative RMS = sqrt(epsilon))."""
+        return OrderReport(
+            F_L=self.F_L, F_rho=self.F_rho, F_B=self.F_B, P_B=self.P_B,
+            epsilon_lighting=self.eps_lighting, epsilon_brdf=self.eps_brdf,
+            epsilon_min_of_errors=self.eps_min_of_errors, rms_min_of_errors=rms_from_energy(self.eps_min_of_errors),
+            epsilon_appendix_b=self.eps_appendix_b, rms_appendix_b=rms_from_energy(self.eps_appendix_b),
+        )

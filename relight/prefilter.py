@@ -16,8 +16,8 @@ normal N for a Lambertian lobe (albedo 1: outgoing radiance E(N)/pi).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Any, Literal
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +35,7 @@ from relight.brdf.coefficients import (
 from relight.conventions import LUMINANCE_WEIGHTS, check_latlong_shape, require_rgb_latlong
 from relight.errors import InputError
 from relight.orders import OrderChoice, appendix_b_bound, order_for_tolerance, uncaptured
+from relight.reports import LatlongOutput, PrefilterReport, Ringing
 
 FloatArray = NDArray[np.float64]
 
@@ -146,7 +147,7 @@ class PrefilterResult:
 
     map: FloatArray
     coefficients: NDArray[np.complex128]  # B_lm, (3, nalm(F_B))
-    report: dict[str, Any] = field(default_factory=dict)
+    report: PrefilterReport
     cube: FloatArray | None = None
 
 
@@ -232,27 +233,25 @@ def prefilter_radial(
         cube = sh.evaluate(b_lm, f_b, theta, phi).reshape(6, cube_size, cube_size, 3)
         timer.lap("cube_synthesis")
 
-    report: dict[str, Any] = {
-        "representation": "reflection_map",
-        "center": lobe.center,
-        "brdf": lobe.spec(),
-        "epsilon": epsilon,
-        "order_requested": order,
-        "window": window,
-        "orders": choice.as_dict(),
-        "predicted": {
-            k: v for k, v in choice.as_dict().items() if k.startswith(("epsilon", "rms"))
-        },
-        "ringing": {
-            "kernel_min": float(kernel_min.min()),
-            "lower_bound_rgb": [float(x) for x in ringing_floor],
-            "min_output_rgb": [float(x) for x in out.reshape(-1, out.shape[-1]).min(axis=0)],
-        },
-        "input": {"height": h, "width": w},
-        "output": {"height": s, "width": 2 * s, "layout": "latlong", "cube_size": cube_size},
-        "timings": dict(timer.seconds),
-        "total_seconds": float(sum(timer.seconds.values())),
-        "backend": backend,
-        "relight_version": __version__,
-    }
+    orders = choice.report()
+    report = PrefilterReport(
+        center=str(lobe.center),
+        brdf=lobe.spec(),
+        epsilon=epsilon,
+        order_requested=order,
+        window=window,
+        orders=orders,
+        predicted=orders.predicted(),
+        ringing=Ringing(
+            kernel_min=float(kernel_min.min()),
+            lower_bound_rgb=[float(x) for x in ringing_floor],
+            min_output_rgb=[float(x) for x in out.reshape(-1, out.shape[-1]).min(axis=0)],
+        ),
+        input={"height": h, "width": w},
+        output=LatlongOutput(height=s, width=2 * s, cube_size=cube_size),
+        timings=dict(timer.seconds),
+        total_seconds=float(sum(timer.seconds.values())),
+        backend=backend,
+        relight_version=__version__,
+    )
     return PrefilterResult(map=out, coefficients=b_lm, report=report, cube=cube)

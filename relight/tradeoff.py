@@ -169,21 +169,22 @@ def _frequency_radial(
 
     h, w = px.shape[:2]
     seconds, res = _timed(lambda: prefilter_radial(px, lobe, epsilon=eps, size=size))
-    o = res.report["orders"]
-    f_proj = min(int(o["F_rho"]), h - 1)
+    o = res.report.orders
+    f_rho = o.F_rho if o.F_rho is not None else o.F_B
+    f_proj = min(f_rho, h - 1)
     pred = cal.predict(costmodel.prefilter_report_features(lobe, res.report, height=h, width=w))
     return {
         "method": "frequency",
         "representation": "reflection_map",
         "setting": {"epsilon": eps},
-        "orders": {"F_B": int(o["F_B"]), "P_B": 0, "F_rho": int(o["F_rho"]), "F_L": o["F_L"], "F_proj": f_proj},
-        "predicted_error": _finite_or_none(o["rms_min_of_errors"]),
-        "predicted_error_bound": _finite_or_none(o["rms_appendix_b"]),
+        "orders": {"F_B": o.F_B, "P_B": 0, "F_rho": f_rho, "F_L": o.F_L, "F_proj": f_proj},
+        "predicted_error": _finite_or_none(o.rms_min_of_errors),
+        "predicted_error_bound": _finite_or_none(o.rms_appendix_b),
         "measured_error": relative_rms(res.map, ref),
         "predicted_seconds": pred.seconds,
         "measured_seconds": seconds,
         "predicted_stages": pred.stages,
-        "measured_stages": costmodel.report_stages(res.report["timings"]),
+        "measured_stages": costmodel.report_stages(res.report.timings),
     }, np.asarray(res.map, dtype=np.float64)
 
 
@@ -520,14 +521,14 @@ def window_tradeoff(
         factors = transfer * window_factors(order, w)[:, None]
         peak = float(np.max(kernel_on_grid(factors, np.array([1.0]))))
         y = luminance(res.map)
-        ring = res.report["ringing"]
+        ring = res.report.ringing
         out.append({
             "window": w,
             "order": order,
             "relative_rms": relative_rms(res.map, ref),
-            "kernel_min": float(ring["kernel_min"]),
-            "kernel_min_relative": float(ring["kernel_min"]) / peak if peak > 0 else 0.0,
-            "lower_bound_rgb": list(ring["lower_bound_rgb"]),
+            "kernel_min": ring.kernel_min,
+            "kernel_min_relative": ring.kernel_min / peak if peak > 0 else 0.0,
+            "lower_bound_rgb": list(ring.lower_bound_rgb),
             "min_output_relative": float(y.min() / y.max()) if y.max() > 0 else 0.0,
             "negative_fraction": float(np.mean(y < 0.0)),
         })

@@ -56,7 +56,7 @@ def test_lambert_irradiance_against_brute_force_quadrature() -> None:
     res = prefilter_radial(env, Lambert(), epsilon=1e-4, size=16)
     ref = reference_radial(env, Lambert(), 16, epsilon=0.0)
     err = relative_rms(res.map, ref)
-    pred = res.report["orders"]["rms_appendix_b"]
+    pred = res.report.orders.rms_appendix_b
     assert err <= pred + 1e-3, (err, pred)
     assert err < 2e-3  # irradiance is smooth: a handful of orders suffices (Basri & Jacobs 2001)
 
@@ -80,12 +80,12 @@ def test_phong_against_angular_reference_within_predicted_error(s: float, name: 
     measured = relative_rms(res.map, ref)
     # The discretisation floor: the same comparison with every order the map's rings resolve (F = H - 1).
     floor = relative_rms(prefilter_radial(env, Phong(s), order=height - 1, size=size).map, ref)
-    o = res.report["orders"]
+    o = res.report.orders
     assert floor < 1e-3, floor
     # App. B's bound is conservative by construction; the minimum-of-errors rule is the paper's heuristic (§5.1)
     # and lands within a factor of two of the measurement on these maps.
-    assert measured <= o["rms_appendix_b"] + floor, (measured, o)
-    assert measured <= 2.0 * o["rms_min_of_errors"] + floor, (measured, o)
+    assert measured <= o.rms_appendix_b + floor, (measured, o)
+    assert measured <= 2.0 * o.rms_min_of_errors + floor, (measured, o)
     assert np.all(np.isfinite(res.map))
 
 
@@ -109,11 +109,11 @@ def test_sun_map_stays_finite_and_within_ringing_bound() -> None:
     for s in [512, 4096]:
         res = prefilter_radial(env, Phong(s), epsilon=1e-3, size=64)
         assert np.all(np.isfinite(res.map))
-        ring = res.report["ringing"]
-        lower = np.array(ring["lower_bound_rgb"])
+        ring = res.report.ringing
+        lower = np.array(ring.lower_bound_rgb)
         assert np.all(res.map.reshape(-1, 3).min(axis=0) >= lower - 1e-9 * np.abs(lower).max())
         # the bound is meaningful: the sun does ring below zero, but by at most |u_F min| * flux
-        assert ring["kernel_min"] < 0.0
+        assert ring.kernel_min < 0.0
 
 
 def test_numpy_backend_equals_ducc0_backend() -> None:
@@ -126,7 +126,7 @@ def test_numpy_backend_equals_ducc0_backend() -> None:
 def test_report_contents() -> None:
     env = sample("studio", 64)
     res = prefilter_radial(env, Phong(32), epsilon=0.01)
-    r = res.report
+    r = res.report.to_json()
     assert r["orders"]["F_B"] == min(r["orders"]["F_rho"], 63)
     assert r["output"]["height"] == size_for_order(r["orders"]["F_B"]) == res.map.shape[0]
     assert set(r["timings"]) >= {"brdf_coefficients", "lighting_projection", "convolution", "synthesis"}

@@ -2,7 +2,7 @@
 calibration. Plain functions: plain data in, plain data out; they never import FastAPI.
 
 * :func:`compute_tradeoff` — ``relight.tradeoff.sweep`` on an uploaded map (area-averaged to ``rows``).
-* :func:`run_scene` — ``relight.planner``: plan a scene and run it; every output file goes into the blob store and
+* :func:`run_scene` — ``relight.planning``: plan a scene and run it; every output file goes into the blob store and
   the result lists their digests.
 * :func:`calibrate_costmodel` — ``relight.costmodel.load_calibration``: calibrates this machine once (a few seconds)
   and caches it in a file, which the server's ``/plan`` then reads.
@@ -65,13 +65,13 @@ def compute_tradeoff(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
 
 
 def run_scene(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
-    """Plan and run a scene (``relight.planner``) on an uploaded map.
+    """Plan and run a scene (``relight.planning``) on an uploaded map.
 
     ``job``: ``scene`` (the scene's JSON form with ``environment`` = the map's digest and service BRDF specs) and
-    ``max_pixels``. The files of :func:`relight.planner.run_plan` go into the blob store; the result maps each file
+    ``max_pixels``. The files of :func:`relight.planning.run_plan` go into the blob store; the result maps each file
     name to its digest and media type; every object with an SHRM also gets its viewer texture (:func:`_add_texture`).
     """
-    from relight.planner import plan_scene, run_plan, scene_from_dict
+    from relight.planning import plan_scene, run_plan, scene_from_dict
 
     store = BlobStore(store_root)
     spec = dict(job["scene"])
@@ -90,8 +90,8 @@ def run_scene(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
         for entry in result["objects"]:
             if entry["files"].get("shrm"):
                 _add_texture(store, Path(tmp) / entry["files"]["shrm"], entry, files)
-    out: dict[str, Any] = _jsonable({"plan": from_core(plan.data, store), "result": from_core(result, store),
-                                     "files": files})
+    out: dict[str, Any] = _jsonable({"plan": from_core(plan.report.to_json(), store),
+                                     "result": from_core(result, store), "files": files})
     return out
 
 

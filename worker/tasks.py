@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.jsonable import jsonable as _jsonable
+from relight.planning.job import uses_reflection_map  # the dispatch rule lives with the planner
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import Reporter
 from relight.worker.results import Layer, existing_result, load_manifest, strip_volatile, write_result
@@ -106,14 +107,6 @@ def _artificial_delay(seconds: float, report: Reporter) -> None:
         time.sleep(seconds / steps)
 
 
-def uses_reflection_map(brdf: Any, params: dict[str, Any]) -> bool:
-    """The dispatch rule: one radially symmetric lobe (and no view order asked for) is a plain reflection map
-    (``prefilter_radial``); everything else, sums of lobes included, is an SHRM (``create_shrm``)."""
-    from relight.brdf.base import RadialLobe
-
-    return isinstance(brdf, RadialLobe) and not params.get("p_order")
-
-
 def _radial(
     pixels: NDArray[np.float32], lobe: Any, params: dict[str, Any], report: Reporter
 ) -> tuple[list[Layer], str, dict[str, Any], dict[str, str]]:
@@ -123,8 +116,8 @@ def _radial(
                            size=params.get("size"))
     report("writing", 0.9)
     layers = [Layer(name="", p=0, q=0, pixels=res.map.astype(np.float32))]
-    attributes = {"relight.report": json.dumps(_jsonable(strip_volatile(res.report)), sort_keys=True)}
-    return layers, "reflection_map", res.report, attributes
+    attributes = {"relight.report": json.dumps(_jsonable(strip_volatile(res.report.to_json())), sort_keys=True)}
+    return layers, "reflection_map", res.report.to_json(), attributes
 
 
 def _general(

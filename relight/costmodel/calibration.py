@@ -243,7 +243,7 @@ def calibrate(*, repeat: int = 3, quick: bool = False, seed: int = 0) -> Calibra
         px, lobe = env(h), Phong(expo)
         runs = [prefilter_radial(px, lobe, order=f, epsilon=eps, size=s) for _ in range(repeat)]
         feats = prefilter_report_features(lobe, runs[0].report, height=h, width=2 * h)
-        record("prefilter_radial", feats, _stage_min([report_stages(r.report["timings"]) for r in runs]))
+        record("prefilter_radial", feats, _stage_min([report_stages(r.report.timings) for r in runs]))
 
     micro = Microfacet(0.3)
     per_eval = lobe_eval_seconds(micro)

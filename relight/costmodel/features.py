@@ -12,6 +12,7 @@ from typing import Any
 
 from relight.brdf.base import Lobe
 from relight.costmodel.timing import lobe_eval_seconds
+from relight.reports import PrefilterReport
 
 #: Features of each stage (module docstring). Stage names match the ``timings`` of the prefilter reports.
 STAGES: dict[str, tuple[str, ...]] = {
@@ -235,12 +236,13 @@ def shrm_features(
     return add_features(*parts)
 
 
-def prefilter_report_features(lobe: Lobe, report: Mapping[str, Any], *, height: int, width: int) -> dict[str, float]:
+def prefilter_report_features(lobe: Lobe, report: PrefilterReport, *, height: int, width: int) -> dict[str, float]:
     """Features of a finished ``prefilter_radial`` run from its report (orders and whether they were explicit)."""
-    o = report["orders"]
-    size = int(report["output"]["height"])
-    f_rho, f_b = int(o["F_rho"]), int(o["F_B"])
-    explicit = report.get("order_requested") is not None
+    o = report.orders
+    size = report.output.height
+    f_b = o.F_B
+    f_rho = o.F_rho if o.F_rho is not None else f_b  # prefilter_radial always reports F_rho
+    explicit = report.order_requested is not None
     f_proj = min(f_rho, height - 1)
     return radial_features(lobe, height=height, width=width, f_rho=f_rho, f_proj=f_proj, f_b=f_b, size=size,
                            explicit=explicit)

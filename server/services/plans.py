@@ -70,16 +70,11 @@ class PlanService:
         return Prepared(env, brdf, params, job_id_for(env.id, brdf.id, params))
 
     async def plan_prepared(self, prep: Prepared) -> PlanPublic:
-        from relight.worker.planning import plan_job
+        from relight.planning import JobPlan, plan_job
 
-        def run() -> dict[str, Any]:
-            from relight.server.services.tradeoffs import plan_seconds
-
+        def run() -> JobPlan:
             spec = to_core(prep.brdf.spec, self.store)
-            raw = plan_job(prep.envmap.model_dump(mode="json"), spec, prep.params)
-            raw["predicted_seconds"], raw["cost_model"] = plan_seconds(  # the calibrated cost model
-                raw, spec, prep.params, prep.envmap.height, prep.envmap.width)
-            return raw
+            return plan_job(prep.envmap.model_dump(mode="json"), spec, prep.params)
 
         try:
             raw = await in_thread(run)
@@ -88,32 +83,31 @@ class PlanService:
         except (BlobMissing, BlobCorrupt) as exc:
             raise Unavailable(f"the measured BRDF file of {prep.brdf.id} is unusable ({exc}); upload it again") \
                 from None
-        if not raw["cost_model"]["calibrated"]:
+        if not raw.cost_model.calibrated:
             from relight.server.services.tradeoffs import start_calibration
 
             start_calibration(self.envmaps.cluster)
         s = self.settings
-        f_b, p_b = raw["orders"]["F_B"], raw["orders"]["P_B"]
+        f_b, p_b = raw.orders.F_B, raw.orders.P_B
         if f_b > s.max_order:
             raise Unprocessable(f"the tolerance epsilon={prep.params['epsilon']} needs order F = {f_b}, above this "
                                 f"server's limit of {s.max_order}; give a larger epsilon or an explicit order")
         if p_b > s.max_p_order:
             raise Unprocessable(f"the tolerance needs view order P = {p_b}, above this server's limit of "
                                 f"{s.max_p_order}")
-        if raw["size"] > s.max_size:
-            raise Unprocessable(f"the output would have S = {raw['size']} rows, above this server's limit of "
+        if raw.size > s.max_size:
+            raise Unprocessable(f"the output would have S = {raw.size} rows, above this server's limit of "
                                 f"{s.max_size}; give an explicit smaller size")
 
         def finished() -> bool:
             with self.db.session() as sess:
                 return sess.scalar(select(Job.state).where(Job.id == prep.job_id)) == "succeeded"
 
+        d = raw.to_json()
         return PlanPublic(
-            job_id=prep.job_id, cached=await in_thread(finished), representation=raw["representation"],
-            reason=raw["reason"], orders=Orders(**raw["orders"]),
-            predicted_error=PredictedError(**raw["predicted_error"]),
-            predicted_seconds=raw["predicted_seconds"], output=OutputShape(**raw["output"]),
-            cost_model=raw["cost_model"],
+            job_id=prep.job_id, cached=await in_thread(finished), representation=raw.representation,
+            reason=raw.reason, orders=Orders(**d["orders"]), predicted_error=PredictedError(**d["predicted_error"]),
+            predicted_seconds=raw.predicted_seconds, output=OutputShape(**d["output"]), cost_model=d["cost_model"],
         )
 
     async def plan(self, create: JobCreate) -> PlanPublic:

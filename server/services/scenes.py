@@ -1,7 +1,7 @@
-"""Scenes as jobs (``POST /scenes``): store a scene, plan it and run the plan in a worker (``relight.planner``).
+"""Scenes as jobs (``POST /scenes``): store a scene, plan it and run the plan in a worker (``relight.planning``).
 
 The scene is validated twice before anything runs: by the pydantic model (shapes, ranges, exactly one of a
-tolerance or a time budget) and by the core's own parser (``relight.planner.scene_from_dict``: distances beyond the
+tolerance or a time budget) and by the core's own parser (``relight.planning.scene_from_dict``: distances beyond the
 bounding radius, unique names, every material parsed). Materials are resolved like every BRDF reference of the API
 (an id from ``POST /brdfs``, a spec object or a spec string) and stored by their canonical spec, so the scene's id
 (the SHA-256 of its canonical form) does not depend on how a material was written. The run's files (one SHRM per
@@ -61,7 +61,7 @@ class SceneService(AnalysisService):
                  "time_budget_s": create.time_budget_s, "size": create.size}
 
         def check() -> None:  # the core's validation is the authority (distances, names, materials)
-            from relight.planner import scene_from_dict
+            from relight.planning import scene_from_dict
 
             core = {**scene, "objects": [{**o, "material": to_core(o["material"], self.store)} for o in objects]}
             scene_from_dict(core)

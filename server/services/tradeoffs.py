@@ -8,8 +8,9 @@ cost model behind ``/plan``.
   (:mod:`relight.server.services.runner`). Identical requests share the row (200 with the result once it exists). Rows
   left queued or running by a previous server process are submitted again when the service first starts in a
   process (at-least-once).
-* **Cost model.** ``/plan`` predicts seconds with ``relight.costmodel``: the calibration cached for this machine if
-  one exists, else the built-in constants while a calibration runs once in a worker (:func:`plan_seconds`).
+* **Cost model.** ``/plan`` predicts seconds with ``relight.planning.plan_job``: the calibration cached for this
+  machine if one exists, else the built-in constants while a calibration runs once in a worker
+  (:func:`start_calibration`).
 """
 
 from __future__ import annotations
@@ -245,7 +246,7 @@ def start_calibration(cluster: Cluster) -> None:
     """Calibrate the cost model once in a worker (``relight.worker.analysis.calibrate_costmodel``); call on the event
     loop.
 
-    The worker writes the calibration file that :func:`plan_seconds` reads on later calls.
+    The worker writes the calibration file that ``relight.planning.plan_job`` reads on later calls.
     """
     if "future" in _calibrating:
         return
@@ -255,47 +256,3 @@ def start_calibration(cluster: Cluster) -> None:
         _calibrating["future"] = cluster.submit(calibrate_costmodel, key="relight-costmodel-calibration")
     except RuntimeError as exc:  # the cluster is not started
         log.warning("could not start the cost-model calibration: %s", exc)
-
-
-def plan_seconds(raw: dict[str, Any], brdf_spec: Any, params: dict[str, Any], height: int,
-                 width: int) -> tuple[float, dict[str, Any]]:
-    """Predicted seconds of a planned job (``relight.worker.planning.plan_job``'s ``raw``) with the calibrated cost
-    model, plus decoding the input and writing the result (``relight.worker.planning``'s I/O terms), and what model was
-    used.
-
-    Without a cached calibration the built-in constants are used (``calibrated: false``; the caller starts one with
-    :func:`start_calibration`). Runs in a thread: it parses the BRDF and reads the order search's cache.
-    """
-    from relight import costmodel
-    from relight.brdf import lpq
-    from relight.brdf.spec import parse_brdf
-    from relight.shrm import brdf_lobes
-    from relight.worker.planning import T_DECODE_PIXEL, T_FIXED, T_WRITE_PIXEL
-
-    cal = costmodel.load_calibration(run=False)
-    brdf = parse_brdf(brdf_spec)
-    size = int(raw["size"])
-    eps = params.get("epsilon")
-    if raw["representation"] == "reflection_map":
-        o = raw["orders"]
-        f_rho, f_b = int(o["F_rho"]), int(o["F_B"])
-        feats = costmodel.radial_features(brdf, height=height, width=width, f_rho=f_rho,  # type: ignore[arg-type]
-                                          f_proj=min(f_rho, height - 1), f_b=f_b, size=size, explicit=eps is None)
-    else:
-        plans = []
-        for lobe, c in zip(brdf_lobes(brdf), raw["component_plans"], strict=True):
-            probes = None
-            if eps is not None and not lobe.radially_symmetric:
-                sel, _ = lpq.cached_select_orders(lobe, float(eps))
-                probes = tuple((int(h["F"]), int(h["P"])) for h in sel.history)
-            plans.append(costmodel.LobePlan(lobe=lobe, structure=c["structure"], f_rho=int(c["F_rho"]),
-                                            f_b=int(c["F_B"]), p_b=int(c["P_B"]), explicit=eps is None,
-                                            probes=probes))
-        f_proj = min(max(p.f_rho for p in plans), height - 1)
-        feats = costmodel.shrm_features(plans, height=height, width=width, f_proj=f_proj, size=size)
-    pred = cal.predict(feats)
-    n_maps = sum(n for _, n in raw["components"])
-    io = T_FIXED + T_DECODE_PIXEL * height * width + T_WRITE_PIXEL * size * 2 * size * n_maps
-    info = {"calibrated": cal.calibrated, "key": cal.key, "created": cal.created, "compute_seconds": pred.seconds,
-            "io_seconds": io, "stages": pred.stages}
-    return pred.seconds + io, info

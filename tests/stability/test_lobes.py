@@ -71,7 +71,7 @@ def test_phong_prefilter_within_its_predicted_error(s: float, eps: float) -> Non
     floor = relative_rms(prefilter_radial(px, Phong(s), order=31, size=16).map, ref)
     err = relative_rms(res.map, ref)
     assert np.all(np.isfinite(res.map))
-    assert err <= res.report["orders"]["rms_appendix_b"] + floor, (s, eps, err, floor, res.report["orders"])
+    assert err <= res.report.orders.rms_appendix_b + floor, (s, eps, err, floor, res.report.orders)
 
 
 @pytest.mark.parametrize("s", [1e3, 1e4])
@@ -80,8 +80,8 @@ def test_sharp_phong_on_a_coarse_map_is_finite_and_bounded_below(s: float) -> No
     the output stays finite and above the ringing bound."""
     px = env("city", 64)
     res = prefilter_radial(px, Phong(s), epsilon=1e-3, size=32)
-    assert res.report["orders"]["F_B"] == 63
-    lower = np.array(res.report["ringing"]["lower_bound_rgb"])
+    assert res.report.orders.F_B == 63
+    lower = np.array(res.report.ringing.lower_bound_rgb)
     assert np.all(np.isfinite(res.map))
     assert np.all(res.map.reshape(-1, 3).min(axis=0) >= lower - 1e-9 * np.abs(res.map).max())
 

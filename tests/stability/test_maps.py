@@ -71,7 +71,7 @@ def test_single_pixel_light_against_the_closed_form(row: int, col: int, s: float
     ref = fejer_pixel_weight(h, row) * kernel[..., None] * px[row, col]
     np.testing.assert_allclose(res.map, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
     # the report's ringing bound is attained within the output's sampling of the kernel: a delta light rings
-    lower = np.array(res.report["ringing"]["lower_bound_rgb"])
+    lower = np.array(res.report.ringing.lower_bound_rgb)
     assert np.all(res.map.reshape(-1, 3).min(axis=0) >= lower - 1e-12 * np.abs(ref).max())
 
 
@@ -85,12 +85,12 @@ def test_sun_1e5_times_the_mean(row: int, col: int, s: float) -> None:
     px[row, col] = 1e5 * px.mean()
     res = prefilter_radial(px, Phong(s), epsilon=1e-3, size=16)
     assert np.all(np.isfinite(res.map))
-    strict_json(res.report)
-    lower = np.array(res.report["ringing"]["lower_bound_rgb"])
+    strict_json(res.report.to_json())
+    lower = np.array(res.report.ringing.lower_bound_rgb)
     assert np.all(res.map.reshape(-1, 3).min(axis=0) >= lower - 1e-9 * np.abs(res.map).max())
     ref = reference_radial(px, Phong(s), 16, epsilon=0.0)
     floor = relative_rms(prefilter_radial(px, Phong(s), order=31, size=16).map, ref)
-    assert relative_rms(res.map, ref) <= res.report["orders"]["rms_appendix_b"] + floor
+    assert relative_rms(res.map, ref) <= res.report.orders.rms_appendix_b + floor
 
 
 def test_sun_in_an_shrm_stays_finite() -> None:
@@ -106,7 +106,7 @@ def test_sun_in_an_shrm_stays_finite() -> None:
 
 # ------------------------------------------------------------------------------------------------ zeros, negatives
 def test_all_zero_maps_give_zero_and_finite_reports(tmp_path: Path) -> None:
-    from relight import costmodel, planner, tradeoff
+    from relight import costmodel, planning, tradeoff
     from relight.shrm import create_shrm, reflect
 
     px = np.zeros((16, 32, 3))
@@ -114,7 +114,7 @@ def test_all_zero_maps_give_zero_and_finite_reports(tmp_path: Path) -> None:
         for kw in ({"epsilon": 1e-3}, {"order": 10}):
             res = prefilter_radial(px, lobe, size=8, **kw)  # type: ignore[arg-type]
             assert not res.map.any()
-            strict_json(res.report)
+            strict_json(res.report.to_json())
     sm = create_shrm(px, Microfacet(0.3), epsilon=0.05, size=8)
     assert not sm.components[0].maps.any() and not reflect(sm, [0, 0, 1]).any()
     strict_json(sm.report)
@@ -122,11 +122,11 @@ def test_all_zero_maps_give_zero_and_finite_reports(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="zero everywhere"):
         tradeoff.sweep(px, Phong(8.0), epsilons=(0.1,), truncations=(0.1,), calibration=costmodel.default_calibration())
     material = "lambert+microfacet:sigma=0.3"
-    scene = planner.scene_from_dict({"environment": "zero", "epsilon": 0.01, "size": 8,
+    scene = planning.scene_from_dict({"environment": "zero", "epsilon": 0.01, "size": 8,
                                      "objects": [{"size": 1, "distance": 5, "material": material}]})
-    plan = planner.plan_scene(scene, px, calibration=costmodel.default_calibration())
-    planner.plan_json(plan)  # strict JSON
-    result = planner.run_plan(plan, tmp_path)
+    plan = planning.plan_scene(scene, px, calibration=costmodel.default_calibration())
+    planning.plan_json(plan)  # strict JSON
+    result = planning.run_plan(plan, tmp_path)
     strict_json(result)
     assert not read_envmap(tmp_path / "object0.view.exr").pixels.any()
 

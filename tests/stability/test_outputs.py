@@ -52,7 +52,7 @@ def strict_json(obj: Any) -> None:
 def test_prefilter_outputs_are_finite_for_finite_maps(px: np.ndarray, lobe: Any, setting: dict[str, Any]) -> None:
     res = prefilter_radial(px, lobe, size=8, **setting)
     assert np.all(np.isfinite(res.map)) and np.all(np.isfinite(res.coefficients))
-    strict_json(res.report)
+    strict_json(res.report.to_json())
 
 
 @stable(15)
@@ -94,7 +94,7 @@ def test_huge_float64_values_do_not_give_nan_predictions() -> None:
     except InputError:
         return  # rejecting such values is fine too
     assert np.all(np.isfinite(res.map))
-    strict_json(res.report)
+    strict_json(res.report.to_json())
 
 
 WRONG_SHAPES = [(np.ones((8, 16)), "(8, 16)"), (np.ones((8, 16, 4)), "(8, 16, 4)"),

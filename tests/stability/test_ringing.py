@@ -59,7 +59,7 @@ def test_gibbs_overshoot_and_undershoot_are_bounded(s: float, order: int, window
     y = res.map[..., 1]
     over = positive_mass(s, order, window)
     assert y.max() <= over + 1e-9, (y.max(), over)
-    lower = res.report["ringing"]["lower_bound_rgb"][1]
+    lower = res.report.ringing.lower_bound_rgb[1]
     assert y.min() >= lower - 1e-9
     assert lower <= 0.0 and over >= 1.0 - 1e-9
 
@@ -98,7 +98,7 @@ def test_negative_lobe_of_a_delta_light_reaches_the_reported_bound() -> None:
     px = np.zeros((64, 128, 3))
     px[20, 30] = 1.0
     res = prefilter_radial(px, Phong(512.0), order=16, size=64)
-    lower = res.report["ringing"]["lower_bound_rgb"][0]
+    lower = res.report.ringing.lower_bound_rgb[0]
     got = res.map[..., 0].min()
     assert lower < 0.0 and lower - 1e-15 <= got <= 0.5 * lower
     # the most negative texel sits on the first negative ring of u_F around the light

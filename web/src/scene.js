@@ -1,4 +1,4 @@
-// Scenes (POST /scenes, relight/planner.py): the plan per object (what is simulated, what is skipped and why), a
+// Scenes (POST /scenes, relight/planning/): the plan per object (what is simulated, what is skipped and why), a
 // top view of where the objects are (from each object's distance and view direction; the viewer at the origin),
 // per object the server's render of that object's own SHRM (`{name}.sphere.png`, asked for with preview_size),
 // and the scene itself in the 3-D view: every object at its place, lit by its own SHRM (the float16 texture

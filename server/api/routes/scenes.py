@@ -1,4 +1,4 @@
-"""``/scenes``: store a scene, plan it and run the plan as a job (``relight.planner``)."""
+"""``/scenes``: store a scene, plan it and run the plan as a job (``relight.planning``)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The scene planner (``relight.planner``): each rule on constructed scenes, minimal orders, shared work, the
+"""The scene planner (``relight.planning``): each rule on constructed scenes, minimal orders, shared work, the
 viewer-distance rule, time budgets, and the measured error of a planned run against the angular reference.
 
 References: closed forms of the lobes' spectra (Phong: ``relight.brdf.coefficients.phong_transfer``, Lambert: the
@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from relight import costmodel, planner
+from relight import costmodel, planning
 from relight.brdf import lpq
 from relight.brdf.coefficients import lambda_l, lambert_transfer, phong_transfer
 from relight.brdf.spec import parse_brdf
@@ -25,7 +25,7 @@ from relight.envmap import read_envmap, resample_latlong, write_exr
 from relight.errors import InputError
 from relight.metrics import relative_rms
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 CAL = costmodel.default_calibration()
 
 
@@ -34,16 +34,16 @@ def env(name: str = "courtyard", rows: int = 32) -> np.ndarray:
     return np.asarray(resample_latlong(read_envmap(DATA / f"{name}.exr").pixels, rows), dtype=np.float64)
 
 
-def scene(objects: list[dict[str, Any]], **kw: Any) -> planner.Scene:
-    return planner.scene_from_dict({"environment": "test", "epsilon": 0.01, "size": 16, **kw, "objects": objects})
+def scene(objects: list[dict[str, Any]], **kw: Any) -> planning.Scene:
+    return planning.scene_from_dict({"environment": "test", "epsilon": 0.01, "size": 16, **kw, "objects": objects})
 
 
 def obj(material: Any, name: str = "o", distance: float = 10.0, **kw: Any) -> dict[str, Any]:
     return {"name": name, "size": 1.0, "distance": distance, "material": material, **kw}
 
 
-def plan(objects: list[dict[str, Any]], name: str = "courtyard", **kw: Any) -> planner.Plan:
-    return planner.plan_scene(scene(objects, **kw), env(name), calibration=CAL)
+def plan(objects: list[dict[str, Any]], name: str = "courtyard", **kw: Any) -> planning.Plan:
+    return planning.plan_scene(scene(objects, **kw), env(name), calibration=CAL)
 
 
 def closed_form_epsilon(transfer: np.ndarray, total: float) -> np.ndarray:
@@ -73,21 +73,39 @@ def phong_epsilon(s: float, lmax: int) -> np.ndarray:
     (lambda d: d["objects"][0].update(spin=3), "unknown key 'spin'"),
     (lambda d: d["objects"].append(dict(d["objects"][0])), "duplicate name"),
     (lambda d: d.update(size=3), "scene.size"),
+    # the limits shared with the API's SceneCreate (relight.planning.scene)
+    (lambda d: d.update(objects=[obj("lambert", f"o{k}") for k in range(planning.MAX_SCENE_OBJECTS + 1)]),
+     f"at most {planning.MAX_SCENE_OBJECTS} objects"),
+    (lambda d: d.update(size=planning.MAX_SCENE_SIZE + 2), "scene.size"),
+    (lambda d: (d.pop("epsilon"), d.update(time_budget_s=planning.MAX_TIME_BUDGET_S * 1.001)), "scene.time_budget_s"),
+    (lambda d: d["objects"][0].update(size=2 * planning.MAX_OBJECT_SIZE, distance=4 * planning.MAX_OBJECT_SIZE),
+     "objects[0].size"),
+    (lambda d: d["objects"][0].update(distance=2 * planning.MAX_OBJECT_DISTANCE), "objects[0].distance"),
 ])
 def test_invalid_scenes_name_the_field(mutate: Any, fragment: str) -> None:
     d: dict[str, Any] = {"environment": "e.exr", "epsilon": 0.01, "objects": [obj("phong:s=8")]}
     mutate(d)
     with pytest.raises(InputError, match=fragment.replace("[", r"\[").replace("]", r"\]").replace(".", r"\.")):
-        planner.scene_from_dict(d)
+        planning.scene_from_dict(d)
+
+
+def test_scene_limits_are_inclusive_at_the_named_constants() -> None:
+    objs = [obj("lambert", f"o{k}") for k in range(planning.MAX_SCENE_OBJECTS)]
+    objs[0].update(size=planning.MAX_OBJECT_SIZE, distance=planning.MAX_OBJECT_DISTANCE)
+    sc = planning.scene_from_dict({"environment": "e", "time_budget_s": planning.MAX_TIME_BUDGET_S,
+                                   "size": planning.MAX_SCENE_SIZE, "objects": objs})
+    assert len(sc.objects) == planning.MAX_SCENE_OBJECTS and sc.size == planning.MAX_SCENE_SIZE
+    assert planning.scene_from_dict({"environment": "e", "epsilon": 0.1, "size": planning.MIN_SCENE_SIZE,
+                                     "objects": objs[1:2]}).size == planning.MIN_SCENE_SIZE
 
 
 def test_load_scene_resolves_the_environment_against_the_file(tmp_path: Path) -> None:
     p = tmp_path / "s.json"
     p.write_text(json.dumps({"environment": "maps/e.exr", "epsilon": 0.1, "objects": [obj("lambert")]}))
-    assert planner.load_scene(p).environment == str(tmp_path / "maps" / "e.exr")
+    assert planning.load_scene(p).environment == str(tmp_path / "maps" / "e.exr")
     p.write_text("{oops")
     with pytest.raises(InputError, match="not valid JSON"):
-        planner.load_scene(p)
+        planning.load_scene(p)
 
 
 # ------------------------------------------------------------------------------------------------ the rules
@@ -95,17 +113,17 @@ def test_lambertian_lobe_is_nine_irradiance_coefficients() -> None:
     eps_closed = closed_form_epsilon(lambert_transfer(8), 2.0 / (3.0 * np.pi))  # int (t/pi)^2 dOmega = 2/(3 pi)
     assert eps_closed[2] == pytest.approx(1 / 128) and eps_closed[1] > 0.01
     p = plan([obj("lambert")])
-    (c,) = p.data["computations"]
-    assert (c["representation"], c["F_B"], c["P_B"], c["n_coefficients"]) == ("irradiance", 2, 0, 9)
-    assert c["epsilon_rho"] == pytest.approx(eps_closed[2], rel=1e-6)
-    res = planner.run_plan(p, write=False)
-    coeffs = res["objects"][0]["irradiance_real_sh"][c["id"]]
+    (c,) = p.report.computations
+    assert (c.representation, c.F_B, c.P_B, c.n_coefficients) == ("irradiance", 2, 0, 9)
+    assert c.epsilon_rho == pytest.approx(eps_closed[2], rel=1e-6)
+    res = planning.run_plan(p, write=False)
+    coeffs = res["objects"][0]["irradiance_real_sh"][c.id]
     assert np.shape(coeffs) == (3, 9)
     # a stricter tolerance than 1/128 needs F = 4 (odd orders above 1 vanish), and the plan says so
     p = plan([obj("lambert")], epsilon=0.005)
-    c = p.data["computations"][0]
-    assert c["F_B"] == 4 and eps_closed[4] <= 0.005 < eps_closed[3]
-    assert any("F > 2" in e["reason"] for e in p.data["objects"][0]["effects"])
+    c = p.report.computations[0]
+    assert c.F_B == 4 and eps_closed[4] <= 0.005 < eps_closed[3]
+    assert any("F > 2" in e.reason for e in p.report.objects[0].effects)
 
 
 def test_radially_symmetric_lobe_is_one_map_at_the_minimal_order() -> None:
@@ -113,35 +131,35 @@ def test_radially_symmetric_lobe_is_one_map_at_the_minimal_order() -> None:
 
     for s, eps in [(64.0, 0.01), (200.0, 1e-3)]:
         p = plan([obj(f"phong:s={s:g}")], epsilon=eps)
-        (c,) = p.data["computations"]
-        e = phong_epsilon(s, c["F_rho"] + 1)
-        assert c["representation"] == "reflection_map" and c["P_B"] == 0 and c["n_maps"] == 1
-        assert e[c["F_rho"]] <= eps < e[c["F_rho"] - 1], (c["F_rho"], e[c["F_rho"] - 2: c["F_rho"] + 1])
-        assert c["F_B"] == min(c["F_rho"], c["F_L"] if c["F_L"] is not None else c["F_rho"], 31)
-        skipped = {x["effect"]: x for x in p.data["objects"][0]["effects"] if not x["simulated"]}
-        assert "radially symmetric" in skipped["view dependence: phong (R-centred)"]["reason"]
+        (c,) = p.report.computations
+        e = phong_epsilon(s, c.F_rho + 1)
+        assert c.representation == "reflection_map" and c.P_B == 0 and c.n_maps == 1
+        assert e[c.F_rho] <= eps < e[c.F_rho - 1], (c.F_rho, e[c.F_rho - 2: c.F_rho + 1])
+        assert c.F_B == min(c.F_rho, c.F_L if c.F_L is not None else c.F_rho, 31)
+        skipped = {x.effect: x for x in p.report.objects[0].effects if not x.simulated}
+        assert "radially symmetric" in skipped["view dependence: phong (R-centred)"].reason
         # the shared-lighting computation equals prefilter_radial's own pipeline at the same order
-        got = planner.run_plan(p, write=False)["maps"]["o"]
-        ref = prefilter_radial(env(), parse_brdf(f"phong:s={s:g}"), order=c["F_B"], size=16).map  # type: ignore[arg-type]
+        got = planning.run_plan(p, write=False)["maps"]["o"]
+        ref = prefilter_radial(env(), parse_brdf(f"phong:s={s:g}"), order=c.F_B, size=16).map  # type: ignore[arg-type]
         np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
 
 
 def test_azimuthally_symmetric_lobe_keeps_q0_terms_only() -> None:
     p = plan([obj("kajiya-kay:s=16", view=[0.2, 0.6, 0.7])])
-    (c,) = p.data["computations"]
-    assert c["representation"] == "shrm_q0" and c["n_maps"] == c["P_B"] + 1
-    comp = planner.run_plan(p, write=False)["shrms"]["o"].components[0]
-    assert comp.terms == [(q, 0) for q in range(c["P_B"] + 1)]
-    skipped = [e for e in p.data["objects"][0]["effects"] if not e["simulated"]]
-    assert any(e["effect"].startswith("azimuthal view dependence (q != 0)") for e in skipped)
+    (c,) = p.report.computations
+    assert c.representation == "shrm_q0" and c.n_maps == c.P_B + 1
+    comp = planning.run_plan(p, write=False)["shrms"]["o"].components[0]
+    assert comp.terms == [(q, 0) for q in range(c.P_B + 1)]
+    skipped = [e for e in p.report.objects[0].effects if not e.simulated]
+    assert any(e.effect.startswith("azimuthal view dependence (q != 0)") for e in skipped)
 
 
 def test_general_lobe_full_shrm_at_minimal_f_and_p() -> None:
     eps = 0.01
     p = plan([obj("microfacet:sigma=0.35", view=[0.2, 0.6, 0.7])], epsilon=eps)
-    (c,) = p.data["computations"]
-    f, pp = c["F_rho"], c["P_rho"]
-    assert c["representation"] == "shrm" and c["n_maps"] == (pp + 1) ** 2 == (c["P_B"] + 1) ** 2
+    (c,) = p.report.computations
+    f, pp = c.F_rho, c.P_rho
+    assert c.representation == "shrm" and c.n_maps == (pp + 1) ** 2 == (c.P_B + 1) ** 2
     table = lpq.brdf_coefficients(parse_brdf("microfacet:sigma=0.35"), f + 2, pp + 2).epsilon_table()  # type: ignore[arg-type]
     # minimal: the tolerance holds at (F, P) and fails at (F - 1, P) and at (F, P - 1)
     assert table[f, pp] <= eps < table[f - 1, pp]
@@ -152,12 +170,12 @@ def test_sum_of_lobes_each_at_its_own_orders() -> None:
     materials = ["lambert:albedo=0.5", "phong:s=100", "microfacet:sigma=0.35"]
     single: dict[str, tuple[int, int, str]] = {}
     for m in materials:
-        (c,) = plan([obj(m)]).data["computations"]
-        single[m] = (c["F_B"], c["P_B"], c["representation"])
+        (c,) = plan([obj(m)]).report.computations
+        single[m] = (c.F_B, c.P_B, c.representation)
     p = plan([obj("+".join(materials))])
-    got = [(c["F_B"], c["P_B"], c["representation"]) for c in p.data["computations"]]
+    got = [(c.F_B, c.P_B, c.representation) for c in p.report.computations]
     assert got == [single[m] for m in materials]
-    assert len({c["F_B"] for c in p.data["computations"]}) == 3  # genuinely different orders
+    assert len({c.F_B for c in p.report.computations}) == 3  # genuinely different orders
 
 
 def test_lighting_projected_once_to_the_largest_order_and_work_shared(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -174,59 +192,58 @@ def test_lighting_projected_once_to_the_largest_order_and_work_shared(monkeypatc
     objs = [obj("lambert", "a"), obj("phong:s=500", "b"), obj("phong:s=500", "c", distance=3.0),
             obj("microfacet:sigma=0.4", "d")]
     p = plan(objs, epsilon=0.01)
-    planner.run_plan(p, write=False)
-    f_rhos = [c["F_rho"] for c in p.data["computations"]]
-    assert calls == [min(max(f_rhos), 31)] == [p.data["lighting"]["F_proj"]]
-    shared = [c for c in p.data["computations"] if c["kind"] == "phong"]
-    assert len(shared) == 1 and shared[0]["shared_by"] == ["b", "c"]
-    assert len(p.data["computations"]) == 3
+    planning.run_plan(p, write=False)
+    f_rhos = [c.F_rho for c in p.report.computations]
+    assert calls == [min(max(f_rhos), 31)] == [p.report.lighting.F_proj]
+    shared = [c for c in p.report.computations if c.kind == "phong"]
+    assert len(shared) == 1 and shared[0].shared_by == ["b", "c"]
+    assert len(p.report.computations) == 3
 
 
 def test_near_viewer_switches_to_the_local_shrm_at_the_stated_threshold() -> None:
     eps = 0.01
-    base = plan([obj("microfacet:sigma=0.35")], epsilon=eps).data["computations"][0]
-    d_star = planner.near_threshold_distance(1.0, base["P_B"], eps)
+    base = plan([obj("microfacet:sigma=0.35")], epsilon=eps).report.computations[0]
+    d_star = planning.near_threshold_distance(1.0, base.P_B, eps)
     # the rule: near when P_B * 2 asin(r / d) > sqrt(epsilon)
-    assert base["P_B"] * planner.view_spread(1.0, d_star) == pytest.approx(math.sqrt(eps))
+    assert base.P_B * planning.view_spread(1.0, d_star) == pytest.approx(math.sqrt(eps))
     p = plan([obj("microfacet:sigma=0.35", "far", distance=1.1 * d_star),
               obj("microfacet:sigma=0.35", "near", distance=0.9 * d_star),
               obj("phong:s=64", "glossy_close", distance=1.5)], epsilon=eps)
-    o = {x["name"]: x for x in p.data["objects"]}
-    assert (o["far"]["viewer"], o["far"]["shrm"]) == ("distant", "global (eq. 7)")
-    assert (o["near"]["viewer"], o["near"]["shrm"]) == ("near", "local (eq. 6)")
-    assert not o["glossy_close"]["view_dependent"] and o["glossy_close"]["viewer"] == "distant"
-    reasons = {e["effect"]: e for e in o["glossy_close"]["effects"]}
-    assert "exact for any viewer distance" in reasons["near-viewer variation of the view direction"]["reason"]
-    assert reasons["near-viewer variation of the view direction"]["simulated"] is False
+    o = {x.name: x for x in p.report.objects}
+    assert (o["far"].viewer, o["far"].shrm) == ("distant", "global (eq. 7)")
+    assert (o["near"].viewer, o["near"].shrm) == ("near", "local (eq. 6)")
+    assert not o["glossy_close"].view_dependent and o["glossy_close"].viewer == "distant"
+    reasons = {e.effect: e for e in o["glossy_close"].effects}
+    assert "exact for any viewer distance" in reasons["near-viewer variation of the view direction"].reason
+    assert reasons["near-viewer variation of the view direction"].simulated is False
 
 
 def test_time_budget_picks_the_most_accurate_plan_that_fits() -> None:
     objs = [obj("phong:s=64", "a"), obj("lambert", "b")]
     sc = scene(objs)
     ladder = (0.1, 0.01, 1e-3, 1e-4)
-    at = {e: planner.plan_scene(scene(objs, epsilon=e), env(), calibration=CAL).data["predicted_seconds"]
+    at = {e: planning.plan_scene(scene(objs, epsilon=e), env(), calibration=CAL).report.predicted_seconds
           for e in ladder}
     assert at[0.1] < at[1e-4]
     budget = 0.5 * (at[0.01] + at[1e-3])  # between the plans at 0.01 and 1e-3
-    if not at[0.01] < budget < at[1e-3]:
-        pytest.skip("predicted times do not separate these tolerances")  # cannot happen with the built-in constants
-    p = planner.plan_for_budget(sc, env(), budget, calibration=CAL, ladder=ladder)
-    assert p.data["epsilon"] == 0.01 and p.data["budget_met"] and p.data["predicted_seconds"] <= budget
-    assert [x["fits"] for x in p.data["budget_ladder"]] == [True, True, False]
-    assert p.data["predicted_error"]["rms_min_of_errors"] > 0
-    tiny = planner.plan_for_budget(sc, env(), 1e-9, calibration=CAL, ladder=ladder)
-    assert tiny.data["epsilon"] == 0.1 and tiny.data["budget_met"] is False
-    via_scene = planner.plan_scene(planner.scene_from_dict({"environment": "t", "time_budget_s": budget, "size": 16,
+    assert at[0.01] < budget < at[1e-3], at  # the built-in constants separate these tolerances
+    p = planning.plan_for_budget(sc, env(), budget, calibration=CAL, ladder=ladder)
+    assert p.report.epsilon == 0.01 and p.report.budget_met and p.report.predicted_seconds <= budget
+    assert [x.fits for x in p.report.budget_ladder] == [True, True, False]
+    assert p.report.predicted_error.rms_min_of_errors > 0
+    tiny = planning.plan_for_budget(sc, env(), 1e-9, calibration=CAL, ladder=ladder)
+    assert tiny.report.epsilon == 0.1 and tiny.report.budget_met is False
+    via_scene = planning.plan_scene(planning.scene_from_dict({"environment": "t", "time_budget_s": budget, "size": 16,
                                                            "objects": objs}), env(), calibration=CAL)
-    assert via_scene.data["mode"] == "time_budget" and via_scene.data["epsilon"] <= 0.01
+    assert via_scene.report.mode == "time_budget" and via_scene.report.epsilon <= 0.01
 
 
 def test_every_object_lists_unsupported_effects() -> None:
     p = plan([obj("lambert+phong:s=32", "x")])
-    effects = {e["effect"]: e for e in p.data["objects"][0]["effects"]}
+    effects = {e.effect: e for e in p.report.objects[0].effects}
     for name in ("shadowing", "interreflection"):
-        assert effects[name]["simulated"] is False and "not yet supported" in effects[name]["reason"]
-    text = planner.format_plan(p)
+        assert effects[name].simulated is False and "not yet supported" in effects[name].reason
+    text = planning.format_plan(p)
     assert "- shadowing: not simulated: not yet supported" in text and "projected once" in text
 
 
@@ -249,8 +266,8 @@ def test_planned_result_within_tolerance_of_the_angular_reference(name: str, eps
 
     views = [[0.0, 0.0, 1.0], [0.2, 0.6, 0.7], [-0.5, 0.3, 0.8]]
     objs = [obj(m, f"o{k}", view=views[k % 3]) for k, m in enumerate(materials)]
-    p = planner.plan_scene(scene(objs, epsilon=eps, size=32), env(name), calibration=CAL)
-    res = planner.run_plan(p, write=False)
+    p = planning.plan_scene(scene(objs, epsilon=eps, size=32), env(name), calibration=CAL)
+    res = planning.run_plan(p, write=False)
     for o in p.scene.objects:
         brdf = parse_brdf(o.material)
         ref = reference_view(env(name), brdf, np.array(o.view), 32, truncation=0.0)

@@ -1,0 +1,144 @@
+"""Running a scene plan (seed 000 App. C steps 2–3, eqs. 6, 12): every computation once from the plan's shared
+lighting, then per object its SHRM (``relight.shrm_io``), the eq. 12 map for its view and the irradiance coefficients
+of Lambertian lobes."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from relight import __version__
+from relight.brdf.base import RadialLobe
+from relight.errors import InputError
+from relight.jsonable import jsonable
+from relight.planning.report import Computation
+from relight.planning.scene_plan import Plan, plan_json
+
+FloatArray = NDArray[np.float64]
+
+
+def compute_component(plan: Plan, comp: Computation) -> Any:
+    """One computation of a plan as an ``relight.shrm.SHRMComponent`` from the plan's shared lighting (App. C
+    steps 2–3: ``B_lmpq = L_lm rho_hat_lpq`` synthesised into the local maps)."""
+    from relight.brdf import lpq
+    from relight.shrm import SHRMComponent, synthesize_local, terms_for
+
+    choice = plan.choices[plan.keys[comp.id]]
+    f_b, p_b, s = comp.F_B, comp.P_B, comp.size
+    if choice.structure == "radial":
+        coeffs = lpq.brdf_coefficients(choice.lobe, f_b, 0)  # rho_hat_l00 = sqrt(4 pi) rho_l (exact)
+    else:
+        coeffs = choice.coefficients
+    rho = coeffs.rho[: f_b + 1, : p_b + 1, : min(coeffs.Q, p_b) + 1]
+    terms = terms_for(choice.structure, p_b)  # type: ignore[arg-type]
+    maps = synthesize_local(plan.lighting.alm, plan.lighting.lmax, rho, terms, s)
+    report = {"center": choice.lobe.center, "structure": choice.structure, "reason": comp.reason,
+              "lobe": choice.lobe.spec(), "orders": {"F_B": f_b, "P_B": p_b, "F_rho": comp.F_rho, "F_L": comp.F_L},
+              "n_maps": len(terms), "predicted": comp.predicted}
+    return SHRMComponent(center=str(choice.lobe.center), structure=choice.structure,  # type: ignore[arg-type]
+                         F=f_b, P=p_b, terms=terms, maps=maps, lobe=choice.lobe.spec(), report=report)
+
+
+def irradiance_coefficients(plan: Plan, comp: Computation) -> list[list[float]]:
+    """Real SH coefficients (3 colours x (F + 1)^2) of a Lambertian lobe's output ``E(N) / pi`` times albedo."""
+    from relight import sh
+    from relight.brdf.coefficients import radial_transfer
+
+    lobe = plan.choices[plan.keys[comp.id]].lobe
+    f_b = comp.F_B
+    assert isinstance(lobe, RadialLobe)
+    transfer = radial_transfer(lobe, f_b).transfer  # (F+1, C)
+    alm = sh.truncate(plan.lighting.alm, plan.lighting.lmax, f_b)
+    l_idx, _ = sh.lm_arrays(f_b)
+    b = alm * transfer[l_idx].T
+    return [[float(x) for x in row] for row in sh.to_real(b, f_b)]
+
+
+def run_plan(
+    plan: Plan, out_dir: str | Path | None = None, *, write: bool = True, preview_size: int = 0
+) -> dict[str, Any]:
+    """Execute a plan: every computation once from the plan's lighting (projected once, while planning), then per
+    object its SHRM, the eq. 12 map for its view (global SHRM) and, if asked, a sphere preview (local SHRM, eq. 6,
+    for near viewers).
+
+    Returns the result summary (also ``result.json`` next to ``plan.json`` in ``out_dir``): files, orders, measured
+    seconds per stage next to the predicted ones. With ``write=False`` nothing is written and the view maps and
+    SHRMs are returned under ``"maps"`` and ``"shrms"`` (``{object name: ...}``).
+    """
+    from relight.shrm import SHRM, reflect, render_sphere
+
+    rep = plan.report
+    if plan.lighting is None or plan.lighting.lmax < rep.lighting.F_proj:
+        raise InputError("this plan has no lighting to the planned order attached; plan it again with plan_scene")
+    out = Path(out_dir) if out_dir is not None else None
+    if write:
+        if out is None:
+            raise InputError("run_plan needs an output folder to write to")
+        out.mkdir(parents=True, exist_ok=True)
+    # the order search (BRDF coefficients) and the lighting projection ran while planning
+    stages: dict[str, float] = {"brdf_coefficients": float(rep.brdf_seconds),
+                                "lighting_projection": float(rep.lighting.seconds)}
+
+    def lap(stage: str, t0: float) -> float:
+        now = time.perf_counter()
+        stages[stage] = stages.get(stage, 0.0) + now - t0
+        return now
+
+    t = time.perf_counter()
+    comps = {c.id: compute_component(plan, c) for c in rep.computations}
+    t = lap("synthesis", t)
+    objects: list[dict[str, Any]] = []
+    maps: dict[str, FloatArray] = {}
+    shrms: dict[str, Any] = {}
+    for o in rep.objects:
+        shrm = SHRM(components=[comps[i] for i in o.computations], brdf=None, report={
+            "representation": "shrm", "layout": "local", "relight_version": __version__,
+            "predicted": o.predicted_error.to_json(), "scene": rep.scene, "object": o.name})
+        image = reflect(shrm, o.view)
+        t = lap("view", t)
+        entry: dict[str, Any] = {"name": o.name, "viewer": o.viewer, "shrm": o.shrm, "output_rows": o.output_rows,
+                                 "files": {}}
+        irr = [c for c in rep.computations if c.id in o.computations and c.representation == "irradiance"]
+        if irr:
+            entry["irradiance_real_sh"] = {c.id: irradiance_coefficients(plan, c) for c in irr}
+        if write and out is not None:
+            from relight.envmap import write_exr, write_png_preview
+            from relight.shrm_io import write_shrm
+
+            shrm_path = out / f"{o.name}.shrm.exr"
+            write_shrm(shrm_path, shrm)
+            view_path = out / f"{o.name}.view.exr"
+            write_exr(view_path, image.astype(np.float32))
+            entry["files"] = {"shrm": shrm_path.name, "manifest": shrm_path.with_suffix(".json").name,
+                              "view_map": view_path.name}
+            if preview_size > 0:
+                sphere = render_sphere(shrm, o.view, preview_size, local=o.viewer == "near")
+                png = out / f"{o.name}.sphere.png"
+                write_png_preview(png, sphere)
+                entry["files"]["sphere_png"] = png.name
+            t = lap("writing", t)
+        else:
+            maps[o.name] = image
+            shrms[o.name] = shrm
+        objects.append(entry)
+    result: dict[str, Any] = {
+        "format": "relight-scene-result", "relight_version": __version__, "scene": rep.scene,
+        "epsilon": rep.epsilon, "objects": objects,
+        "computed": [c.id for c in rep.computations],
+        "lighting_projections": 1,
+        "measured_seconds": float(sum(v for k, v in stages.items() if k != "writing")),
+        "measured_stages": stages,
+        "predicted_seconds": rep.predicted_seconds, "predicted_stages": rep.predicted_stages,
+    }
+    if write and out is not None:
+        (out / "plan.json").write_text(plan_json(plan))
+        (out / "result.json").write_text(json.dumps(jsonable(result), indent=1, allow_nan=False))
+    else:
+        result["maps"] = maps
+        result["shrms"] = shrms
+    return result

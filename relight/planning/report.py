@@ -1,0 +1,140 @@
+"""The scene plan as a typed report (``relight.reports``): what each object needs, what is shared, what is skipped
+and why, and the predicted error and seconds (:func:`relight.planning.plan_scene`). Field names are the keys of the
+plan's JSON (``relight scene plan --json``, ``plan.json``, the API's ``ScenePublic.plan``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from relight.reports import OMIT_NONE, Report
+
+
+@dataclass(frozen=True, kw_only=True)
+class ErrorSummary(Report):
+    """An object's (and the scene's) worst predicted error: minimum of orders (§5.1) and App. B's bound."""
+
+    rms_min_of_errors: float | None = None
+    rms_appendix_b: float | None = None
+    epsilon_min_of_errors: float | None = None
+    epsilon_appendix_b: float | None = None
+
+    @classmethod
+    def of(cls, predicted: dict[str, float]) -> ErrorSummary:
+        return cls(**{k: predicted.get(k) for k in ("rms_min_of_errors", "rms_appendix_b", "epsilon_min_of_errors",
+                                                      "epsilon_appendix_b")})
+
+
+@dataclass(frozen=True, kw_only=True)
+class Computation(Report):
+    """One lobe at one output size, computed once and shared by the objects in ``shared_by``. ``predicted`` holds the
+    lobe's predicted errors (``relight.reports.PredictedError``'s keys; SHRM lobes add ``rms_brdf``)."""
+
+    id: str
+    lobe: dict[str, Any]
+    kind: str
+    center: str
+    representation: str
+    structure: str
+    reason: str
+    F_rho: int
+    P_rho: int
+    F_L: int | None
+    F_B: int
+    P_B: int
+    n_maps: int
+    n_coefficients: int
+    size: int
+    epsilon_rho: float
+    epsilon_rho_below: dict[str, float]
+    predicted: dict[str, float]
+    shared_by: list[str] = field(default_factory=list)
+    order_search_probes: list[list[int]] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Effect(Report):
+    """An effect simulated or skipped for an object, and why."""
+
+    effect: str
+    simulated: bool
+    reason: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class ObjectPlan(Report):
+    """One object: itself (``relight.planning.scene.SceneObject``'s fields), its viewer (distant: one V, the global
+    SHRM, eq. 7; near: V per pixel, the local SHRM, eq. 6), output rows, computations, worst error and effects."""
+
+    name: str
+    shape: str
+    size: float
+    distance: float
+    material: Any
+    view: list[float]
+    view_dependent: bool
+    viewer: str
+    shrm: str
+    view_spread_deg: float
+    p_delta: float
+    near_below_distance: float
+    output_rows: int
+    computations: list[str]
+    predicted_error: ErrorSummary
+    effects: list[Effect]
+
+
+@dataclass(frozen=True, kw_only=True)
+class LightingPlan(Report):
+    """The lighting projection, done once to the largest order any lobe needs and shared (App. C)."""
+
+    F_proj: int
+    projected_once: bool = True
+    input: dict[str, int]
+    seconds: float
+    shared_by: list[str]
+    reason: str = "projected once to the largest order any lobe needs, then shared (App. C)"
+
+
+@dataclass(frozen=True, kw_only=True)
+class BudgetStep(Report):
+    """One tolerance tried under a time budget."""
+
+    epsilon: float
+    predicted_seconds: float
+    fits: bool
+    predicted_rms: float | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class CostModelInfo(Report):
+    """Which cost model predicted the seconds (``relight.costmodel``)."""
+
+    calibrated: bool
+    key: str
+    note: str = ("includes the BRDF order search and coefficients, the projection, every map and one eq. 12 view per "
+                 "object; not file writing")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScenePlan(Report):
+    """A planned scene (module docstring). The budget keys are present only under a time budget."""
+
+    format: str = "relight-scene-plan"
+    relight_version: str
+    scene: str
+    environment: str
+    epsilon: float
+    time_budget_s: float | None
+    mode: str
+    lighting: LightingPlan
+    computations: list[Computation]
+    objects: list[ObjectPlan]
+    brdf_seconds: float
+    predicted_seconds: float
+    predicted_stages: dict[str, float]
+    predicted_error: ErrorSummary
+    cost_model: CostModelInfo
+    budget_met: bool | None = field(default=None, metadata=OMIT_NONE)
+    budget_ladder: list[BudgetStep] | None = field(default=None, metadata=OMIT_NONE)
+    budget_note: str | None = field(default=None, metadata=OMIT_NONE)
