@@ -226,7 +226,10 @@ def test_quick_calibration_fits_positive_constants_and_predicts_monotone_costs()
     cal = costmodel.calibrate(quick=True, repeat=1)
     # non-negative least squares: a term the runs cannot separate may fit to 0, never below
     assert cal.constants and all(np.isfinite(v) and v >= 0 for v in cal.constants.values()), cal.constants
-    assert cal.constants["proj_px"] > 0 and cal.constants["syn_px"] > 0
+    # every stage the runs time costs something; which of its terms carries it may vary with one noisy repeat (the
+    # fit can trade proj_px against proj_leg when the machine is loaded), so no single constant is required > 0
+    for stage in ("lighting_projection", "synthesis", "brdf_coefficients", "angular", "angular_view"):
+        assert any(cal.constants[f] > 0 for f in costmodel.STAGES[stage]), (stage, cal.constants)
 
     env = random_env(96)
     lobe = Phong(100.0)
