@@ -28,7 +28,8 @@ from relight.reference import DEFAULT_TRUNCATION
 Handler = Callable[[argparse.Namespace], int]
 
 #: Modules with a ``register(subparsers)`` function adding more subcommands (skipped when not importable).
-COMMAND_PROVIDERS = ["relight.cli_shrm", "relight.cli_plan", "relight.cli_factorize", "relight.client.cli"]
+COMMAND_PROVIDERS = ["relight.cli_shrm", "relight.cli_plan", "relight.cli_factorize", "relight.cli_mesh",
+                     "relight.client.cli"]
 
 
 def _parse_order(text: str) -> tuple[int, int | None]:
