@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 from relight import costmodel  # noqa: E402
 from relight.brdf.spec import parse_brdf  # noqa: E402
 from relight.envmap import read_envmap, resample_latlong  # noqa: E402
+from relight.jsonable import jsonable  # noqa: E402
 from relight.tradeoff import sweep, write_tradeoff  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -303,8 +304,10 @@ def main() -> None:
             res = sweep(px, brdf, size=args.size, calibration=cal, epsilons=EPSILONS.get(key))
             res.meta["input"]["path"] = f"data/envmaps/{map_name}.exr"
             sub = f"{map_name}_{key}"
-            summary = case_summary(res.points, res.meta, brdf, cal)
+            points = [p.to_json() for p in res.points]
+            summary = case_summary(points, res.meta, brdf, cal)  # adds the full-size and cached-BRDF columns
             write_tradeoff(res, out / sub, title=f"{map_name}, {spec}")
+            (out / sub / "tradeoff.json").write_text(json.dumps(jsonable(points), indent=1, allow_nan=False))
             cases.append({"map": map_name, "material": spec, "material_text": text, "dir": sub, "summary": summary})
             print(f"{sub}: {len(res.points)} points in {time.perf_counter() - t0:.1f} s; predicted/measured time "
                   f"{summary['time_ratio_range'][0]:.2f}..{summary['time_ratio_range'][1]:.2f}", flush=True)

@@ -76,7 +76,7 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     res.meta["input"].update({"path": str(args.envmap), "original_height": h_in})
     paths = write_tradeoff(res, args.out, title=args.title)
     lo, hi = res.meta["time_ratio_range"] or (math.nan, math.nan)
-    front = [p for p in res.points if p["pareto_overall"]]
+    front = [p for p in res.points if p.pareto_overall]
     print(f"wrote {', '.join(sorted(p.name for p in paths.values()))} to {args.out}: {len(res.points)} points "
           f"({px.shape[0]} x {px.shape[1]} input, {res.meta['output']['height']} x {res.meta['output']['width']} "
           f"output), {len(front)} on the overall Pareto front; predicted/measured time {lo:.2f}..{hi:.2f}")

@@ -60,7 +60,7 @@ def compute_tradeoff(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
         kwargs["view"] = params["view"]
     res = sweep(px, brdf, epsilons=params.get("epsilons"), size=params.get("size"), **kwargs)
     res.meta["input"]["envmap"] = job["envmap"]
-    out: dict[str, Any] = _jsonable({"points": res.points, "meta": from_core(res.meta, store)})
+    out: dict[str, Any] = _jsonable({"points": [p.to_json() for p in res.points], "meta": from_core(res.meta, store)})
     return out
 
 

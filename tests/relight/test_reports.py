@@ -116,3 +116,20 @@ def test_scene_plan_keys_in_both_modes() -> None:
         if extra:
             assert all(set(s) == {"epsilon", "predicted_seconds", "fits", "predicted_rms"}
                        for s in d["budget_ladder"])
+
+
+POINT_KEYS = {"method", "representation", "setting", "orders", "predicted_error", "predicted_error_bound",
+              "measured_error", "predicted_seconds", "measured_seconds", "predicted_stages", "measured_stages",
+              "mitsuba_error", "image_error", "pareto", "pareto_overall"}
+
+
+def test_tradeoff_point_keys() -> None:
+    from relight.tradeoff import sweep
+
+    res = sweep(PX[::2, ::2], Phong(8.0), epsilons=(0.1,), truncations=(0.1,), size=8, calibration=CAL,
+                mitsuba=False)
+    d = res.as_dict()
+    json.dumps(d, allow_nan=False)
+    assert [set(p) for p in d["points"]] == [POINT_KEYS, POINT_KEYS]
+    assert set(d["points"][0]["orders"]) == {"F_B", "P_B", "F_rho", "F_L", "F_proj"}
+    assert set(d["points"][1]["orders"]) == {"truncation", "theta_star_deg", "W", "W_visited"}

@@ -50,7 +50,7 @@ from relight.mitsuba_twin import (
 from relight.reference_view import reference_view
 from relight.shrm import create_shrm, reflect, render_sphere
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 CAL = costmodel.default_calibration()
 VIEW = np.array(tradeoff.DEFAULT_VIEW)
 ROWS = 32
@@ -216,8 +216,8 @@ def test_sweep_records_mitsuba_errors() -> None:
     m = res.meta["mitsuba"]
     print("\nmitsuba meta:", {k: v for k, v in m.items() if k not in ("metric", "bsdf")})
     for p in res.points:
-        print(f"{p['method']} {p['setting']}: measured {p['measured_error']:.4g}, image {p['image_error']:.4g}, "
-              f"mitsuba {p['mitsuba_error']:.4g}, predicted {p['predicted_error']:.3g}")
+        print(f"{p.method} {p.setting}: measured {p.measured_error:.4g}, image {p.image_error:.4g}, "
+              f"mitsuba {p.mitsuba_error:.4g}, predicted {p.predicted_error:.3g}")
     assert m["computed"] is True and m["variant"] in VARIANTS
     assert m["bsdf"] == twin(beckmann()) and m["spp"] == SETTINGS.spp and m["blocks"] == 24
     assert m["image"] == {"height": 32, "width": 32} and m["block"] == 4 and m["radius"] == 0.8
@@ -228,11 +228,11 @@ def test_sweep_records_mitsuba_errors() -> None:
     assert ref_err <= 3 * noise + SYSTEMATIC, m
     json.dumps(res.as_dict(), allow_nan=False)
     for p in res.points:
-        assert np.isfinite(p["mitsuba_error"]) and np.isfinite(p["image_error"]), p
-        assert abs(p["mitsuba_error"] - p["image_error"]) <= 3 * noise + SYSTEMATIC, p
-    coarse, fine = (p for p in res.points if p["method"] == "frequency")
-    assert coarse["setting"]["epsilon"] == 0.1 and fine["setting"]["epsilon"] == 0.05
-    assert coarse["mitsuba_error"] > max(fine["mitsuba_error"], 3 * noise)
+        assert np.isfinite(p.mitsuba_error) and np.isfinite(p.image_error), p
+        assert abs(p.mitsuba_error - p.image_error) <= 3 * noise + SYSTEMATIC, p
+    coarse, fine = (p for p in res.points if p.method == "frequency")
+    assert coarse.setting["epsilon"] == 0.1 and fine.setting["epsilon"] == 0.05
+    assert coarse.mitsuba_error > max(fine.mitsuba_error, 3 * noise)
 
 
 def test_mirrored_view_fails() -> None:
@@ -270,7 +270,7 @@ def test_no_twin_records_why() -> None:
     res = _tiny_sweep(Phong(16.0))
     assert res.meta["mitsuba"] == {"computed": False, "reason": res.meta["mitsuba"]["reason"]}
     assert "phong" in res.meta["mitsuba"]["reason"] and "twin" in res.meta["mitsuba"]["reason"]
-    assert all(p["mitsuba_error"] is None and p["image_error"] is None for p in res.points)
+    assert all(p.mitsuba_error is None and p.image_error is None for p in res.points)
     with pytest.raises(InputError, match="no Mitsuba 3 twin"):
         _tiny_sweep(Phong(16.0), mitsuba=True)
 
@@ -278,7 +278,7 @@ def test_no_twin_records_why() -> None:
 def test_switched_off() -> None:
     res = _tiny_sweep(beckmann(), mitsuba=False)
     assert res.meta["mitsuba"]["computed"] is False and "switched off" in res.meta["mitsuba"]["reason"]
-    assert all(p["mitsuba_error"] is None for p in res.points)
+    assert all(p.mitsuba_error is None for p in res.points)
 
 
 def test_map_mitsuba_cannot_show_exactly() -> None:
@@ -300,7 +300,7 @@ def test_cli_mitsuba_modes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caps
     monkeypatch.setattr(cli, "COMMAND_PROVIDERS", [*(p for p in cli.COMMAND_PROVIDERS if p != "relight.cli_plan"),
                                                    "relight.cli_plan"])
     monkeypatch.setenv("RELIGHT_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(tradeoff, "TwinSettings", lambda: TwinSettings(size=32, block=4, spp=256))
+    monkeypatch.setattr(tradeoff.sweeps, "TwinSettings", lambda: TwinSettings(size=32, block=4, spp=256))
     costmodel.forget()
     costmodel.save_calibration(CAL, costmodel.cache_path())  # a cached calibration: the CLI does not calibrate
     src = tmp_path / "studio.exr"

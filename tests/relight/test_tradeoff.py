@@ -1,7 +1,7 @@
 """The accuracy–time explorer (``relight.tradeoff``) and ``relight tradeoff``.
 
 Small maps (sample maps area-averaged to 32 x 64 and 16 x 32) and few settings keep these quick. The cost model's
-built-in constants are used (no calibration run); its accuracy is tested in ``tests/relight/test_costmodel.py``.
+built-in constants are used (no calibration run); its accuracy is tested in ``test_costmodel.py``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from relight.brdf.radial import Phong
 from relight.envmap import read_envmap, resample_latlong, write_exr
 from relight.errors import InputError
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 CAL = costmodel.default_calibration()
 REQUIRED = {"method", "orders", "predicted_error", "measured_error", "predicted_seconds", "measured_seconds",
             "pareto", "pareto_overall"}
@@ -47,21 +47,21 @@ def phong_sweep() -> tradeoff.Tradeoff:
 
 def test_radial_sweep_points_and_errors() -> None:
     res = phong_sweep()
-    assert [p["method"] for p in res.points] == ["frequency"] * 3 + ["angular"] * 2
+    assert [p.method for p in res.points] == ["frequency"] * 3 + ["angular"] * 2
     for p in res.points:
-        assert REQUIRED <= set(p)
-        assert p["measured_seconds"] > 0 and p["predicted_seconds"] > 0
-        assert math.isfinite(p["measured_error"])
-    freq = [p for p in res.points if p["method"] == "frequency"]
+        assert REQUIRED <= set(p.to_json())
+        assert p.measured_seconds > 0 and p.predicted_seconds > 0
+        assert math.isfinite(p.measured_error)
+    freq = [p for p in res.points if p.method == "frequency"]
     # a tighter tolerance never lowers the order and, on this map, lowers the measured error
-    assert [p["orders"]["F_B"] for p in freq] == sorted(p["orders"]["F_B"] for p in freq)
-    assert freq[0]["measured_error"] > freq[-1]["measured_error"]
+    assert [p.orders["F_B"] for p in freq] == sorted(p.orders["F_B"] for p in freq)
+    assert freq[0].measured_error > freq[-1].measured_error
     # App. B's bound is conservative (test_prefilter: plus the pixel grid's floor, below 2e-3 on this map)
     for p in freq:
-        assert p["measured_error"] <= p["predicted_error_bound"] + 2e-3, p
+        assert p.measured_error <= p.predicted_error_bound + 2e-3, p
     # the Pareto front of each method is non-empty and no front point is dominated within its method
     for method in ("frequency", "angular"):
-        assert any(p["pareto"] for p in res.points if p["method"] == method)
+        assert any(p.pareto for p in res.points if p.method == method)
     assert res.meta["reference"]["truncation"] == 0.0 and res.meta["view"] is None
     lo, hi = res.meta["time_ratio_range"]
     assert 0 < lo <= hi
@@ -75,22 +75,22 @@ def test_angular_predicted_error_is_exact_for_a_uniform_environment() -> None:
     res = tradeoff.sweep(np.full((32, 64, 3), 0.7), Phong(8.0), epsilons=(0.1,), truncations=(0.2, 0.05),
                          size=8, calibration=CAL)
     for p in res.points:
-        if p["method"] == "angular":
-            assert p["measured_error"] == pytest.approx(p["predicted_error"], rel=0.2), p
+        if p.method == "angular":
+            assert p.measured_error == pytest.approx(p.predicted_error, rel=0.2), p
         else:
-            assert p["measured_error"] < 2e-3
+            assert p.measured_error < 2e-3
 
 
 def test_view_dependent_sweep() -> None:
     view = (0.3, 0.5, 0.8)
     res = tradeoff.sweep(env("sunset", 16), Microfacet(0.4), epsilons=(0.1, 0.01), truncations=(0.1,), size=8,
                          view=view, calibration=CAL)
-    freq = [p for p in res.points if p["method"] == "frequency"]
+    freq = [p for p in res.points if p.method == "frequency"]
     assert res.meta["representation"] == "shrm"
     assert np.allclose(res.meta["view"], np.array(view) / np.linalg.norm(view))
-    assert freq[1]["orders"]["P_B"] >= freq[0]["orders"]["P_B"] and freq[1]["orders"]["F_B"] > freq[0]["orders"]["F_B"]
-    assert freq[1]["measured_error"] < freq[0]["measured_error"]
-    assert "view" in freq[0]["measured_stages"] and "angular_view" in res.points[-1]["measured_stages"]
+    assert freq[1].orders["P_B"] >= freq[0].orders["P_B"] and freq[1].orders["F_B"] > freq[0].orders["F_B"]
+    assert freq[1].measured_error < freq[0].measured_error
+    assert "view" in freq[0].measured_stages and "angular_view" in res.points[-1].measured_stages
 
 
 def test_write_tradeoff_json_and_plots(tmp_path: Path) -> None:
@@ -137,3 +137,49 @@ def test_cli_tradeoff(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: p
     assert cli.main(["tradeoff", str(src), "--brdf", "phong:s=16", "--out", str(out), "--epsilons", "2"]) == 2
     assert "--epsilons" in capsys.readouterr().err
     costmodel.forget()
+
+
+def test_matplotlib_is_optional_outside_the_plots() -> None:
+    """matplotlib is the ``plots`` extra: with it made unimportable, the sweep, its JSON, scene and job planning and
+    the service's app import and run; only ``plot`` fails, with an error naming the extra. A fresh interpreter, so
+    that nothing imported earlier in this process hides an import."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent("""
+        import sys
+
+        class NoMatplotlib:
+            def find_spec(self, name, path=None, target=None):
+                if name == "matplotlib" or name.startswith("matplotlib."):
+                    raise ImportError("matplotlib is blocked for this test")
+                return None
+
+        sys.meta_path.insert(0, NoMatplotlib())
+        import json, tempfile
+        import numpy as np
+        from relight import costmodel, planning, tradeoff
+        from relight.brdf.radial import Phong
+        from relight.errors import RelightError
+        import relight.server.main  # the service's app module
+
+        cal = costmodel.default_calibration()
+        px = np.random.default_rng(0).random((16, 32, 3)) + 0.1
+        res = tradeoff.sweep(px, Phong(8.0), epsilons=(0.1,), truncations=(0.1,), size=8, calibration=cal,
+                             mitsuba=False)
+        json.dumps(res.as_dict(), allow_nan=False)
+        scene = planning.scene_from_dict({"environment": "x", "epsilon": 0.1, "size": 8,
+                                          "objects": [{"size": 1, "distance": 3, "material": "phong:s=8"}]})
+        planning.run_plan(planning.plan_scene(scene, px, calibration=cal), write=False)
+        try:
+            tradeoff.write_tradeoff(res, tempfile.mkdtemp())
+        except RelightError as exc:
+            assert "relight[plots]" in str(exc), exc
+        else:
+            raise AssertionError("plot ran without matplotlib")
+        assert not any(m == "matplotlib" or m.startswith("matplotlib.") for m in sys.modules)
+        print("ok")
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:]
