@@ -32,10 +32,13 @@ $(STAMP): pyproject.toml
 run: $(STAMP) web/node_modules/.installed
 	$(BIN)/relight serve --host 127.0.0.1 --port 8000 --data .relight-data
 
+# mypy and import-linter read the installed layout (relight.server from server/, ...): tools/pkgview.py links it
+# under build/pkgview. lint-imports checks the layering contracts of pyproject.toml [tool.importlinter].
 lint: $(STAMP)
-	$(BIN)/ruff check relight server worker client tests bench tools
+	$(BIN)/ruff check relight server worker client contract tests bench tools
+	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null
+	cd build/pkgview && PYTHONPATH=. ../../$(BIN)/lint-imports --no-cache ../../pyproject.toml
 
-# mypy reads the installed layout (relight.server from server/, ...): tools/pkgview.py links it under build/.
 typecheck: $(STAMP)
 	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null
 	cd build/pkgview && ../../$(BIN)/mypy --config-file ../../pyproject.toml -p relight

@@ -1,12 +1,13 @@
-"""Service subcommands of the ``relight`` CLI (registered by ``relight.cli`` through ``register``).
+"""Client subcommands of the ``relight`` CLI (registered through the ``relight.commands`` entry point group;
+``relight serve`` and ``relight worker`` register from ``relight.server.cli`` and ``relight.worker.cli``).
 
-    relight serve [--host H] [--port P] [--data DIR]          server + embedded Dask cluster; prints the URL
     relight upload ENVMAP [--server URL]
     relight submit ENVMAP --brdf SPEC [--epsilon E | --order F] [--size S] [--wait] [--out SHRM.exr]
     relight jobs [--state S]
-    relight worker --scheduler tcp://host:8786                a Dask worker (nanny) with relight importable
 
 ``--server`` defaults to ``$RELIGHT_SERVER`` or http://127.0.0.1:8000; ``--api-key`` to ``$RELIGHT_API_KEY``.
+The SDK (httpx, pydantic) loads when a command runs; a :class:`relight.client.errors.RelightError` is printed on one
+line with exit status 2, like the core's errors.
 """
 
 from __future__ import annotations
@@ -15,19 +16,11 @@ import argparse
 import json
 import os
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
-from relight.client.errors import RelightError
-
 _DIGEST = re.compile(r"^[0-9a-f]{64}$")
-
-
-def _default_preload() -> Path | None:
-    import relight
-
-    path = Path(relight.__file__).resolve().parent.parent / "data" / "envmaps"
-    return path if path.is_dir() else None
 
 
 def _client(args: argparse.Namespace) -> Any:
@@ -45,27 +38,6 @@ def _add_common(p: argparse.ArgumentParser) -> None:
 
 
 # -------------------------------------------------------------------------------------------------- commands
-def cmd_serve(args: argparse.Namespace) -> int:
-    from relight.server.config import Settings
-    from relight.server.run import serve
-
-    overrides: dict[str, Any] = {}
-    if args.data is not None:
-        overrides["data_dir"] = Path(args.data)
-    if args.workers is not None:
-        overrides["n_workers"] = args.workers
-    if args.scheduler is not None:
-        overrides["scheduler"] = args.scheduler
-    if args.no_preload:
-        overrides["preload_dir"] = None
-    elif args.preload is not None:
-        overrides["preload_dir"] = Path(args.preload)
-    elif "RELIGHT_PRELOAD_DIR" not in os.environ:
-        overrides["preload_dir"] = _default_preload()
-    serve(Settings(**overrides), args.host, args.port)
-    return 0
-
-
 def cmd_upload(args: argparse.Namespace) -> int:
     with _client(args) as c:
         env = c.upload_envmap(args.envmap, name=args.name)
@@ -138,23 +110,18 @@ def cmd_jobs(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_worker(args: argparse.Namespace) -> int:
-    from relight.worker.run import run_worker
-
-    run_worker(args.scheduler, nthreads=args.nthreads, name=args.name, memory_limit=args.memory_limit,
-               nanny=not args.no_nanny, host=args.host)
-    return 0
-
-
 def _guard(fn: Any) -> Any:
-    """Client errors are RelightErrors: relight.cli prints them on one line (exit status 2)."""
+    """Client errors print on one line with exit status 2 (as ``relight.cli`` prints the core's); ^C is 130."""
 
     def run(args: argparse.Namespace) -> int:
+        from relight.client.errors import RelightError
+
         try:
             code: int = fn(args)
             return code
-        except RelightError:
-            raise
+        except RelightError as exc:
+            print(f"relight: error: {exc}", file=sys.stderr)
+            return 2
         except KeyboardInterrupt:
             return 130
 
@@ -162,17 +129,7 @@ def _guard(fn: Any) -> Any:
 
 
 def register(sub: Any) -> None:
-    p = sub.add_parser("serve", help="run the HTTP service with an embedded Dask cluster")
-    p.add_argument("--host", default="127.0.0.1")
-    p.add_argument("--port", type=int, default=8000, help="0 picks a free port (the URL is printed)")
-    p.add_argument("--data", help="data directory (database, blobs); default $RELIGHT_DATA_DIR or ./relight-data")
-    p.add_argument("--workers", type=int, help="embedded cluster worker processes (default 2)")
-    p.add_argument("--scheduler", help="connect to this Dask scheduler instead of starting a local cluster")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--preload", help="directory of environment maps to ingest at start-up (default: the samples)")
-    g.add_argument("--no-preload", action="store_true", help="do not ingest the sample maps")
-    p.set_defaults(func=_guard(cmd_serve))
-
+    """Add ``upload``, ``submit`` and ``jobs`` to the ``relight`` command's subparsers."""
     p = sub.add_parser("upload", help="upload an environment map to the service")
     p.add_argument("envmap")
     p.add_argument("--name")
@@ -198,12 +155,3 @@ def register(sub: Any) -> None:
     p.add_argument("--limit", type=int, default=50)
     _add_common(p)
     p.set_defaults(func=_guard(cmd_jobs))
-
-    p = sub.add_parser("worker", help="run a Dask worker for the service (scale-out)")
-    p.add_argument("--scheduler", required=True, help="tcp://host:8786")
-    p.add_argument("--nthreads", type=int, default=1)
-    p.add_argument("--name")
-    p.add_argument("--memory-limit", default="auto")
-    p.add_argument("--host", default=None, help="interface to listen on (default: Dask's choice)")
-    p.add_argument("--no-nanny", action="store_true", help="no supervising nanny (the worker is not restarted)")
-    p.set_defaults(func=_guard(cmd_worker))

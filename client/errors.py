@@ -1,6 +1,6 @@
 """The client's one exception tree, and the single place where httpx errors are mapped onto it.
 
-    RelightError                 (also a relight.errors.RelightError: the ``relight`` CLI reports it on one line)
+    RelightError                 (the ``relight`` CLI's service commands report it on one line, exit status 2)
     ├── ApiError                 the server answered with an error status (RFC 9457 problem details)
     ├── JobFailed                a job ended failed or cancelled
     └── TransportError           no usable answer: connection refused, timeout, broken stream
@@ -13,10 +13,8 @@ from typing import Any
 
 import httpx
 
-from relight.errors import RelightError as CoreRelightError
 
-
-class RelightError(CoreRelightError):
+class RelightError(Exception):
     """Base class of every error the client raises."""
 
 

@@ -1,7 +1,7 @@
 """``RelightClient`` (sync) and ``AsyncRelightClient`` over httpx.
 
 Both build their requests from the same :class:`_Call` descriptions and parse answers into the shared models
-(:mod:`relight.client.models`); they differ only in how a call is sent. Every failure is a
+(:mod:`relight.contract.models`); they differ only in how a call is sent. Every failure is a
 :class:`relight.client.errors.RelightError`.
 """
 
@@ -19,7 +19,7 @@ import httpx
 from pydantic import BaseModel
 
 from relight.client.errors import JobFailed, TransportError, from_httpx, from_response
-from relight.client.models import (
+from relight.contract.models import (
     BrdfPublic,
     EnvmapList,
     EnvmapPublic,

@@ -5,8 +5,11 @@
     relight compare A.exr B.exr [--json]
     relight info ENVMAP
 
-Errors: exit status 2 and one clear line on stderr. Further commands (service, SHRM rendering) register themselves
-through ``COMMAND_PROVIDERS``.
+Errors: exit status 2 and one clear line on stderr. Further commands register themselves with a
+``register(subparsers)`` function: the core's own (SHRM rendering, scene planning) are listed in
+``COMMAND_PROVIDERS``; every other package's (``relight serve`` from ``relight.server.cli``, ``relight worker`` from
+``relight.worker.cli``, the client's ``upload``/``submit``/``jobs``) are entry points of the group
+``relight.commands`` (``name = "module:register"`` in pyproject.toml), so the core never names them.
 """
 
 from __future__ import annotations
@@ -27,9 +30,10 @@ from relight.reference import DEFAULT_TRUNCATION
 
 Handler = Callable[[argparse.Namespace], int]
 
-#: Modules with a ``register(subparsers)`` function adding more subcommands (skipped when not importable).
-COMMAND_PROVIDERS = ["relight.cli_shrm", "relight.cli_plan", "relight.cli_factorize", "relight.cli_mesh",
-                     "relight.client.cli"]
+#: The core's own modules with a ``register(subparsers)`` function adding more subcommands.
+COMMAND_PROVIDERS = ["relight.cli_shrm", "relight.cli_plan", "relight.cli_factorize", "relight.cli_mesh"]
+#: The entry point group through which other packages add subcommands (value ``module:register``).
+ENTRY_POINT_GROUP = "relight.commands"
 
 
 def _parse_order(text: str) -> tuple[int, int | None]:
@@ -202,14 +206,22 @@ def build_parser() -> argparse.ArgumentParser:
     inf.set_defaults(func=cmd_info)
 
     for name in COMMAND_PROVIDERS:
-        try:
-            mod = importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name is not None and (name == exc.name or name.startswith(exc.name + ".")):
-                continue  # the provider is not installed; a missing dependency inside it is an error
-            raise
-        mod.register(sub)
+        importlib.import_module(name).register(sub)
+    for register in _entry_point_providers():
+        register(sub)
     return p
+
+
+def _entry_point_providers() -> list[Callable[[Any], None]]:
+    """The ``register`` functions of the ``relight.commands`` entry points, sorted by entry point name.
+
+    ``importlib.metadata`` lists each distribution once (the first copy on ``sys.path``, the one Python imports),
+    so an editable checkout and a wheel both on the path do not register a command twice; two distributions that
+    claim one command name make argparse refuse the second.
+    """
+    from importlib.metadata import entry_points
+
+    return [ep.load() for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name)]
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -150,7 +150,7 @@ def install(app: FastAPI) -> None:
 
 #: ``responses=`` for route decorators: documents problem bodies in the OpenAPI schema.
 def problem_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
-    from relight.client.models import Problem
+    from relight.contract.models import Problem
 
     return {
         code: {

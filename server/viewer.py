@@ -8,6 +8,9 @@ Paths (none collides with an API route):
   mapped to the bare specifiers ``three`` and ``three/addons/`` by the page's import map: no bundler, no CDN;
 * ``/meshes/...`` — the sample meshes (``data/meshes``: bunny.obj, teapot.obj).
 
+Every folder is package data (``relight.web``, ``relight.data``; :mod:`relight.resources`), so a wheel install
+serves the same files as a checkout: the wheel carries the three.js files the viewer imports (pyproject.toml).
+
 Static files are public (the viewer asks for the API key, if the server needs one, and sends it with its API
 calls).
 """
@@ -22,11 +25,12 @@ from fastapi import FastAPI
 from starlette.responses import FileResponse, PlainTextResponse, Response
 from starlette.staticfiles import StaticFiles
 
+from relight import resources
+
 log = logging.getLogger("relight.server")
 
-REPO: Final = Path(__file__).resolve().parents[1]
-WEB_DIR: Final = REPO / "web"
-MESH_DIR: Final = REPO / "data" / "meshes"
+WEB_DIR: Final = resources.package_dir(resources.WEB)
+MESH_DIR: Final = resources.mesh_dir()
 THREE_HINT: Final = "three.js is not installed: run `npm ci --prefix web` (make web) on the server"
 
 

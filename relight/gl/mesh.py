@@ -13,10 +13,11 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import resources
 from relight.errors import InputError
 
-#: ``data/meshes`` of this checkout (bunny.obj, teapot.obj).
-MESH_DIR: Final = Path(__file__).resolve().parents[2] / "data" / "meshes"
+#: ``data/meshes`` (bunny.obj, teapot.obj), package data of ``relight.data`` (:mod:`relight.resources`).
+MESH_DIR: Final = resources.mesh_dir()
 OBJECTS: Final = ("sphere", "bunny", "teapot")
 
 

@@ -25,16 +25,16 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Final, Literal
 
-from relight import conventions, envmap, shrm
+from relight import conventions, envmap, resources, shrm
 from relight.envmap import display
 
 Target = Literal["330", "300 es"]
 
-#: ``web/shaders`` of this checkout.
-SHADER_DIR: Final = Path(__file__).resolve().parents[2] / "web" / "shaders"
+#: ``web/shaders``, package data of ``relight.web`` (:mod:`relight.resources`).
+SHADER_DIR: Final = resources.shader_dir()
 GENERATED_GLSL: Final = "generated/constants.glsl"
-#: Where ``--write`` puts the JavaScript twin of the constants.
-GENERATED_JS: Final = Path(__file__).resolve().parents[2] / "web" / "src" / "generated" / "constants.js"
+#: Where ``--write`` puts the JavaScript twin of the constants (``web/src/generated``).
+GENERATED_JS: Final = resources.package_dir(resources.WEB, "src", "generated", "constants.js")
 
 #: Lobe centres (``relight.brdf.base.Center``) as shader integers.
 CENTERS: Final = {"R": 0, "N": 1, "T": 2}

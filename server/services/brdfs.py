@@ -12,7 +12,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from relight.client.models import BrdfPublic
+from relight.contract.models import BrdfPublic
 from relight.errors import InputError
 from relight.server.config import Settings
 from relight.server.db import Brdf, Database

@@ -23,7 +23,7 @@ from typing import Any
 from distributed.scheduler import KilledWorker
 from sqlalchemy import select
 
-from relight.client.models import EnvmapPublic
+from relight.contract.models import EnvmapPublic
 from relight.envmap.formats import ACCEPTED, sniff
 from relight.envmap.formats import SNIFF_BYTES as _SNIFF_BYTES
 from relight.errors import InputError

@@ -29,7 +29,7 @@ from typing import Any, Final, TypeVar
 
 from sqlalchemy import func, select, update
 
-from relight.client.models import (
+from relight.contract.models import (
     ACTIVE_STATES,
     JobList,
     JobParams,

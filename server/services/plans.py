@@ -8,7 +8,7 @@ from typing import Any
 from sqlalchemy import select
 
 import relight
-from relight.client.models import BrdfPublic, EnvmapPublic, JobCreate, Orders, OutputShape, PlanPublic, PredictedError
+from relight.contract.models import BrdfPublic, EnvmapPublic, JobCreate, Orders, OutputShape, PlanPublic, PredictedError
 from relight.errors import InputError
 from relight.server.config import Settings
 from relight.server.db import Database, Job

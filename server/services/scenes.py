@@ -17,7 +17,7 @@ from typing import Any
 
 from fastapi import Request
 
-from relight.client.models import JobState, SceneCreate, ScenePublic
+from relight.contract.models import JobState, SceneCreate, ScenePublic
 from relight.errors import InputError
 from relight.server.problems import Conflict, NotFound, Unprocessable
 from relight.server.services.base import aware, in_thread, utc

@@ -28,7 +28,7 @@ from sqlalchemy import JSON, DateTime, Integer, String, Text, select, update
 from sqlalchemy.orm import Mapped, mapped_column
 
 import relight
-from relight.client.models import JobState, TradeoffCreate, TradeoffPublic
+from relight.contract.models import JobState, TradeoffCreate, TradeoffPublic
 from relight.server.cluster import Cluster
 from relight.server.config import Settings
 from relight.server.db import Base, Database, utcnow

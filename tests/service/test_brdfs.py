@@ -75,7 +75,7 @@ def test_union_covers_every_core_model() -> None:
     import inspect
 
     from relight.brdf import models
-    from relight.client.brdfs import KINDS
+    from relight.contract.brdfs import KINDS
 
     home = {models.__name__, "relight.brdf.radial"}  # radial lobes are re-exported by models
     classes = [cls for _, cls in inspect.getmembers(models, inspect.isclass) if cls.__module__ in home]

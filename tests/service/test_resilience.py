@@ -17,8 +17,8 @@ import httpx
 import psutil
 import pytest
 
-from relight.client.models import JobPublic, JobState
 from relight.client.sdk import RelightClient
+from relight.contract.models import JobPublic, JobState
 
 from .support import (
     Server,

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from relight.client.errors import ApiError
-from relight.client.models import JobState
+from relight.contract.models import JobState
 
 from .support import Proc, Server, assert_problem, base_env, library_map, read_exr, start_server, wait_until
 

@@ -11,8 +11,8 @@ import httpx
 import numpy as np
 import pytest
 
-from relight.client.models import JobPublic, JobState
 from relight.client.sdk import RelightClient
+from relight.contract.models import JobPublic, JobState
 
 from .support import Server, assert_healthy, assert_problem, exr_bytes, library_map, make_envmap, read_exr
 

@@ -8,8 +8,8 @@ from typing import Any
 import httpx
 import pytest
 
-from relight.client.models import TradeoffPublic
 from relight.client.sdk import RelightClient
+from relight.contract.models import TradeoffPublic
 
 from .support import assert_healthy, assert_problem
 

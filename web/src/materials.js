@@ -1,4 +1,4 @@
-// The material panel's models, read from the server's OpenAPI schema (the BrdfSpec union of client/brdfs.py), so
+// The material panel's models, read from the server's OpenAPI schema (the BrdfSpec union of contract/brdfs.py), so
 // new BRDF models appear without changing the viewer. Shown: every model whose required parameters are numbers
 // (or number-or-list, shown as one number) or enumerations; optional parameters without a default are left out
 // (the server's default applies). Sums of lobes are offered as "+ Lambert diffuse" on any R-centred model.

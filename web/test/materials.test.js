@@ -1,4 +1,4 @@
-// Material models from an OpenAPI document shaped like the server's (client/brdfs.py through pydantic).
+// Material models from an OpenAPI document shaped like the server's (contract/brdfs.py through pydantic).
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
 
-from relight.client.brdfs import BrdfSpec
-from relight.client.models import BrdfPublic
+from relight.contract.brdfs import BrdfSpec
+from relight.contract.models import BrdfPublic
 from relight.server.api.deps import BrdfsDep
 from relight.server.problems import problem_responses
 

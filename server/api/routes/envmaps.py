@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Request, Response
 from starlette.responses import Response as StarletteResponse
 
-from relight.client.models import EnvmapList, EnvmapPublic
+from relight.contract.models import EnvmapList, EnvmapPublic
 from relight.server.api.deps import EnvmapsDep
 from relight.server.api.http import blob_response
 from relight.server.problems import problem_responses

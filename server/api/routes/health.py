@@ -6,7 +6,7 @@ from fastapi import APIRouter
 from starlette.responses import PlainTextResponse
 
 import relight
-from relight.client.models import Health
+from relight.contract.models import Health
 from relight.server.api.deps import ServicesDep
 from relight.server.services.base import in_thread
 

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 from starlette.responses import StreamingResponse
 
-from relight.client.models import JobList, JobPublic, JobState
+from relight.contract.models import JobList, JobPublic, JobState
 from relight.server.api.deps import JobsDep
 from relight.server.problems import problem_responses
 

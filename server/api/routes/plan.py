@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from relight.client.models import PlanCreate, PlanPublic
+from relight.contract.models import PlanCreate, PlanPublic
 from relight.server.api.deps import PlansDep
 from relight.server.problems import problem_responses
 

@@ -28,7 +28,7 @@ import numpy as np
 from fastapi import APIRouter, Query, Request
 from starlette.responses import Response
 
-from relight.client.models import parse_view
+from relight.contract.models import parse_view
 from relight.errors import InputError
 from relight.server.api.deps import EnvmapsDep, JobsDep, ServicesDep
 from relight.server.problems import Unavailable, Unprocessable, problem_responses

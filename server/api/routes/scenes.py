@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Request, Response
 from starlette.responses import Response as StarletteResponse
 
-from relight.client.models import SceneCreate, ScenePublic
+from relight.contract.models import SceneCreate, ScenePublic
 from relight.server.api.http import blob_response
 from relight.server.problems import problem_responses
 from relight.server.services.scenes import SceneService, scene_service

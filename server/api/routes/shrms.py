@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Request, Response
 from starlette.responses import Response as StarletteResponse
 
-from relight.client.models import JobPublic, ShrmCreate, ShrmManifest
+from relight.contract.models import JobPublic, ShrmCreate, ShrmManifest
 from relight.server.api.deps import JobsDep
 from relight.server.api.http import bytes_response
 from relight.server.problems import problem_responses

@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Response
 
-from relight.client.models import TradeoffCreate, TradeoffPublic
+from relight.contract.models import TradeoffCreate, TradeoffPublic
 from relight.server.problems import problem_responses
 from relight.server.services.tradeoffs import TradeoffService, tradeoff_service
 

@@ -8,11 +8,21 @@ from __future__ import annotations
 import math
 from datetime import datetime
 from enum import StrEnum
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, WithJsonSchema, model_validator
 
-from relight.client.brdfs import BrdfSpec
+from relight.contract.brdfs import BrdfSpec
+from relight.planning.scene import (
+    MAX_OBJECT_DISTANCE,
+    MAX_OBJECT_SIZE,
+    MAX_SCENE_OBJECTS,
+    MAX_SCENE_SIZE,
+    MAX_TIME_BUDGET_S,
+    MIN_SCENE_SIZE,
+    NAME_PATTERN,
+    SHAPES,
+)
 
 Digest = Annotated[str, Field(pattern=r"^[0-9a-f]{64}$", description="SHA-256, 64 lowercase hex digits")]
 
@@ -279,14 +289,28 @@ class TradeoffPublic(Public):
 
 
 # -------------------------------------------------------------------------------------------------- scenes
-SceneName = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")]
+# The scene schema is the core's (relight.planning.scene): its limits, shapes and name pattern are imported, so a
+# scene the CLI accepts the API accepts. Only the previews' size is a service limit (the core renders none).
+SceneName = Annotated[str, Field(pattern=NAME_PATTERN)]
+#: Service limit on the N x N sphere previews of a scene run.
+MAX_PREVIEW_SIZE = 256
+
+
+def _shape(value: str) -> str:
+    if value not in SHAPES:
+        raise ValueError(f"must be one of {list(SHAPES)}, got {value!r}")
+    return value
+
+
+Shape = Annotated[str, AfterValidator(_shape), WithJsonSchema({"type": "string", "enum": list(SHAPES)})]
 
 
 class SceneObjectCreate(Strict):
     name: SceneName | None = None
-    shape: Literal["sphere", "bunny", "teapot"] = "sphere"
-    size: float = Field(gt=0.0, le=1e6, description="bounding radius")
-    distance: float = Field(gt=0.0, le=1e9, description="from the viewer to the object's centre (> size)")
+    shape: Shape = "sphere"
+    size: float = Field(gt=0.0, le=MAX_OBJECT_SIZE, description="bounding radius")
+    distance: float = Field(gt=0.0, le=MAX_OBJECT_DISTANCE,
+                            description="from the viewer to the object's centre (> size)")
     material: BrdfRef
     view: Vector3 | None = Field(None, description="direction from the object toward the viewer (default +Z)")
 
@@ -296,11 +320,12 @@ class SceneCreate(Strict):
 
     name: SceneName = "scene"
     environment: Digest
-    objects: list[SceneObjectCreate] = Field(min_length=1, max_length=16)
+    objects: list[SceneObjectCreate] = Field(min_length=1, max_length=MAX_SCENE_OBJECTS)
     epsilon: float | None = Field(None, gt=0.0, lt=1.0, description="tolerance (seed 000 §5.1)")
-    time_budget_s: float | None = Field(None, gt=0.0, le=3600.0, description="or a time budget in seconds")
-    size: int | None = Field(None, ge=8, le=512, description="output rows of every map (default S ~ 10 F)")
-    preview_size: int = Field(0, ge=0, le=256, description="also render N x N sphere previews")
+    time_budget_s: float | None = Field(None, gt=0.0, le=MAX_TIME_BUDGET_S, description="or a time budget in seconds")
+    size: int | None = Field(None, ge=MIN_SCENE_SIZE, le=MAX_SCENE_SIZE,
+                             description="output rows of every map (default S ~ 10 F)")
+    preview_size: int = Field(0, ge=0, le=MAX_PREVIEW_SIZE, description="also render N x N sphere previews")
 
     @model_validator(mode="after")
     def _one_of(self) -> SceneCreate:
