@@ -9,9 +9,9 @@ from typing import Any
 import pytest
 from pydantic import ValidationError
 
-from relight.planning import scene as planner
 from relight.contract.models import SceneCreate
 from relight.errors import InputError
+from relight.planning import scene as planner
 
 ENV = "0" * 64  # a digest: the API takes an envmap id, the core any non-empty string
 

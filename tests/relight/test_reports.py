@@ -90,8 +90,8 @@ def test_job_plan_keys(spec: dict[str, Any], params: dict[str, Any], extra: set[
 
 
 def test_api_models_take_the_core_reports_field_for_field() -> None:
-    from relight.client.models import Orders as ApiOrders
-    from relight.client.models import PredictedError as ApiPredictedError
+    from relight.contract.models import Orders as ApiOrders
+    from relight.contract.models import PredictedError as ApiPredictedError
 
     assert set(ApiOrders.model_fields) == {f.name for f in dataclasses.fields(Orders)}
     assert set(ApiPredictedError.model_fields) == {f.name for f in dataclasses.fields(PredictedError)}
