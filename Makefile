@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest jstest bench system-deps clean
+.PHONY: run test lint typecheck pytest jstest bench system-deps clean wheel
 
 # Debian packages the tests need: chromium (real-browser tests, never a downloaded browser), Mesa's EGL
 # (headless moderngl) and libllvm19 (Mitsuba 3's fast llvm_ad_rgb variant for the oracle test). Installed with apt
@@ -42,6 +42,10 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null
 	cd build/pkgview && ../../$(BIN)/mypy --config-file ../../pyproject.toml -p relight
+
+# A self-contained wheel (viewer, shaders, three.js, sample data as package data) in build/dist.
+wheel: $(STAMP) web/node_modules/.installed
+	$(BIN)/pip wheel --no-deps --quiet --wheel-dir build/dist .
 
 jstest: web/node_modules/.installed
 	node --test web/test/
