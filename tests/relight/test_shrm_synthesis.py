@@ -26,7 +26,7 @@ def test_p0_shrm_equals_prefilter_radial() -> None:
         sm = shrm.create_shrm(e, lobe, size=S, **kw)  # type: ignore[arg-type]
         comp = sm.components[0]
         assert comp.structure == "radial" and comp.terms == [(0, 0)] and comp.P == 0
-        assert comp.F == ref.report["orders"]["F_B"]
+        assert comp.F == ref.report.orders.F_B
         got = shrm.reflect(sm, [0.3, 0.4, -0.5])  # view independent
         np.testing.assert_allclose(got, ref.map, rtol=0, atol=1e-9 * np.abs(ref.map).max())
         np.testing.assert_allclose(comp.maps[0] * shrm.Y00, ref.map, atol=1e-9 * np.abs(ref.map).max())
