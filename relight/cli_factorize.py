@@ -32,11 +32,13 @@ def _keys(d: dict[float, int]) -> dict[str, int]:
 
 
 def cmd_factorize(args: argparse.Namespace) -> int:
-    from relight.brdf.spec import brdf_to_spec, parse_brdf
+    from relight.brdf.frame import FrameBRDF
+    from relight.brdf.spec import brdf_to_spec, parse_frame_brdf
+    from relight.factor_kernel import unwrap
     from relight.factor_predict import predict_terms
     from relight.factorization import convergence, factorize
 
-    brdf = parse_brdf(args.brdf)
+    brdf = unwrap(parse_frame_brdf(args.brdf))
     n = args.resolution
     kwargs: dict[str, Any] = {
         "domain": args.domain, "n_theta": n, "n_phi": args.phi if args.phi is not None else n, "grid": args.grid,
@@ -57,7 +59,7 @@ def cmd_factorize(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     doc = res.as_dict(MAX_VALUES)
-    doc["brdf"] = brdf_to_spec(brdf)
+    doc["brdf"] = brdf.spec() if isinstance(brdf, FrameBRDF) else brdf_to_spec(brdf)
     doc["predicted_terms"] = _keys(pred["terms"]) if pred else None
     if pred:
         doc["prediction"] = {k: (_keys(v) if isinstance(v, dict) and all(isinstance(x, float) for x in v) else v)
@@ -91,7 +93,8 @@ def cmd_factorize(args: argparse.Namespace) -> int:
 
 def register(subparsers: Any) -> None:
     p = subparsers.add_parser("factorize", help="in-out BRDF factorization: singular values and terms K")
-    p.add_argument("brdf", help="phong:s=30, microfacet:sigma=0.2, merl:file.binary, ... or a JSON file")
+    p.add_argument("brdf", help="phong:s=30, microfacet:sigma=0.2, merl:file.binary, ward:alpha_x=0.1,alpha_y=0.3,"
+                   "rho_d=0,rho_s=1 (anisotropic: dense SVD), ... or a JSON file")
     p.add_argument("--domain", choices=["hemisphere", "sphere"], default="hemisphere")
     p.add_argument("--resolution", type=int, default=DEFAULT_RESOLUTION, help="nodes in cos(theta) (and phi)")
     p.add_argument("--phi", type=int, help="azimuths (default: the resolution)")

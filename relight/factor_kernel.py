@@ -32,6 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.brdf.base import IsotropicBRDF, Lobe, RadialLobe
+from relight.brdf.frame import FrameBRDF, FrameSum, LobeAdapter
+from relight.brdf.models import SumBRDF
 from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -203,20 +205,53 @@ def _lobe_kernel(lobe: Lobe, include_cosine: bool) -> Kernel:
     )
 
 
+def unwrap(brdf: Any) -> Any:
+    """relight lobes behind the tangent-frame interface (``relight.brdf.frame``) as plain lobes or a ``SumBRDF``,
+    so that isotropic ones take the block SVD and the radial predictions; other objects unchanged."""
+    if isinstance(brdf, LobeAdapter):
+        return brdf.lobe
+    if isinstance(brdf, FrameSum) and all(isinstance(t, LobeAdapter) for t in brdf.terms):
+        return SumBRDF([t.lobe for t in brdf.terms if isinstance(t, LobeAdapter)])
+    return brdf
+
+
+def _frame_kernel(brdf: FrameBRDF, include_cosine: bool) -> Kernel:
+    """A tangent-frame BRDF (anisotropic: dense SVD) in the local frame x = t, y = b, z = n."""
+
+    def full(wi: FloatArray, wo: FloatArray) -> FloatArray:
+        wi, wo = np.broadcast_arrays(np.asarray(wi, np.float64), np.asarray(wo, np.float64))
+        val = brdf.fcos_local(wi, wo) if include_cosine else brdf.f_local(wi, wo)
+        return _mean_channels(val, wi.shape[:-1])
+
+    return Kernel(full=full, iso=None, include_cosine=include_cosine, description=str(brdf.spec()))
+
+
 def make_kernel(brdf: Any, *, domain: str = "hemisphere", include_cosine: bool = True) -> Kernel:
-    """The kernel of ``brdf``: a relight lobe, a ``SumBRDF`` of lobes, or a vectorised callable ``f(wi, wo)``.
+    """The kernel of ``brdf``: a relight lobe, a ``SumBRDF`` of lobes, a tangent-frame BRDF
+    (``relight.brdf.frame.FrameBRDF``, e.g. ``parse_frame_brdf``'s anisotropic models) or a vectorised callable
+    ``f(wi, wo)``.
 
     A callable is taken as f_r in the local frame (normal +z, tangent +x) and treated as anisotropic (dense SVD);
-    with ``include_cosine`` it is multiplied by ``max(cos theta_i, 0)``.
+    with ``include_cosine`` it is multiplied by ``max(cos theta_i, 0)``. Lobes about the tangent (Kajiya–Kay) are
+    evaluated through ``LobeAdapter`` with the tangent along +x (dense SVD).
     """
     if domain not in DOMAINS:
         raise InputError(f"domain must be one of {', '.join(DOMAINS)}, got {domain!r}")
     if not include_cosine and domain != "hemisphere":
         raise InputError("include_cosine=False (f_r = rho_hat / cos theta_i) is defined on the hemisphere only")
+    brdf = unwrap(brdf)
+    if isinstance(brdf, Lobe) and brdf.center == "T":
+        if not include_cosine:
+            raise InputError(f"{brdf.kind}: a lobe about the tangent is defined with its cosine (rho_hat) only")
+        return _frame_kernel(LobeAdapter(brdf), True)
+    if isinstance(brdf, FrameBRDF):
+        return _frame_kernel(brdf, include_cosine)
     lobes = getattr(brdf, "lobes", None)
     if isinstance(brdf, Lobe):
         return _lobe_kernel(brdf, include_cosine)
     if isinstance(lobes, list) and lobes and all(isinstance(x, Lobe) for x in lobes):
+        if any(x.center == "T" for x in lobes):
+            return _frame_kernel(FrameSum([LobeAdapter(x) for x in lobes]), include_cosine)
         parts = [_lobe_kernel(x, include_cosine) for x in lobes]
 
         def full_sum(wi: FloatArray, wo: FloatArray) -> FloatArray:

@@ -29,7 +29,7 @@ from relight.brdf.coefficients import spectrum_for_tolerance
 from relight.brdf.measured import half_diff_to_dirs
 from relight.brdf.radial import Lobe1D, Phong
 from relight.errors import InputError
-from relight.factor_kernel import DOMAINS, make_kernel
+from relight.factor_kernel import DOMAINS, make_kernel, unwrap
 from relight.factorization import THRESHOLDS, terms_for
 
 #: Largest theta_d averaged into the theta_h curve (radians): 60 deg leaves out the grazing differences whose
@@ -115,6 +115,7 @@ def predict_terms(
     brdf: Any, *, domain: str = "hemisphere", include_cosine: bool = True, thresholds: tuple[float, ...] = THRESHOLDS
 ) -> dict[str, Any]:
     """The cheapest applicable prediction of K per threshold (module docstring), with the paper's closed forms."""
+    brdf = unwrap(brdf)
     lobes = brdf.lobes if hasattr(brdf, "lobes") and not isinstance(brdf, Lobe) else None
     if isinstance(lobes, list) and len(lobes) == 1:
         brdf = lobes[0]
@@ -124,6 +125,9 @@ def predict_terms(
             s = brdf.s
             out["paper"] = {"eq12_6s": 6.0 * s, "fig3a": (5.0 if domain == "sphere" else 2.5) * s}
         return out
+    if isinstance(brdf, Lobe) and brdf.center == "T" or isinstance(lobes, list) and any(
+            isinstance(x, Lobe) and x.center == "T" for x in lobes):
+        raise InputError("no SVD-free prediction for a lobe about the tangent (anisotropic): run the SVD")
     if isinstance(brdf, (Lobe, IsotropicBRDF)) or isinstance(lobes, list):
         out = half_angle_terms(brdf, include_cosine=include_cosine, thresholds=thresholds)
         if domain == "sphere":

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import NDArray
 
 from relight.errors import InputError
@@ -70,6 +71,7 @@ class Factorization:
     complete_below: float  # every singular value above this is listed
     factors: list[Factor] = field(default_factory=list)
     seconds: float = 0.0
+    cpu_seconds: float = 0.0  # process CPU time (all threads): comparable across loads, unlike wall-clock
     blocks_decomposed: int = 0
 
     def captured(self, k: int) -> float:
@@ -92,6 +94,7 @@ class Factorization:
             "quantity": "f_r cos(theta_i)" if self.include_cosine else "f_r",
             "blocks_decomposed": self.blocks_decomposed,
             "seconds": self.seconds,
+            "cpu_seconds": self.cpu_seconds,
         }
 
 
@@ -158,8 +161,11 @@ def _assemble(kernel: Kernel, grid: Grid, keep: list[int], real: bool, energy: F
 
 
 def _block_values(b: NDArray[Any]) -> FloatArray:
+    """Singular values of one block: |eigenvalues| of a real symmetric block (LAPACK syevd: about 3x cheaper than
+    an SVD), else the SVD's."""
     if np.isrealobj(b) and np.allclose(b, b.T, rtol=0.0, atol=1e-13 * max(float(np.abs(b).max()), 1e-300)):
-        return np.asarray(np.sort(np.abs(np.linalg.eigvalsh(b)))[::-1], dtype=np.float64)
+        ev = scipy.linalg.eigh(b, eigvals_only=True, driver="evd", check_finite=False)
+        return np.asarray(np.sort(np.abs(ev))[::-1], dtype=np.float64)
     return np.asarray(np.linalg.svd(b, compute_uv=False), dtype=np.float64)
 
 
@@ -277,9 +283,10 @@ def factorize(
     use_block = kernel.isotropic and method != "dense"
     if not use_block and (g.n_theta * g.n_phi) > 6400:
         raise InputError(f"a dense SVD of {g.n_theta} x {g.n_phi} nodes is too large (at most 6400 nodes)")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = _block(kernel, g, thresholds, n_factors, n_values) if use_block else _dense(kernel, g, thresholds, n_factors)
     res.seconds = time.perf_counter() - t0
+    res.cpu_seconds = time.process_time() - c0
     return res
 
 

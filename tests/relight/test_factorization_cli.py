@@ -39,6 +39,16 @@ def test_factorize_writes_the_json_contract(tmp_path: Path) -> None:
         assert f"K = {doc['terms'][key]}" in r.stdout
 
 
+def test_factorize_anisotropic_spec(tmp_path: Path) -> None:
+    out = tmp_path / "a"
+    r = run("factorize", "ward:alpha_x=0.2,alpha_y=0.4,rho_d=0,rho_s=1", "--resolution", "8", "--no-convergence",
+            "--out", str(out))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((out / "factorization.json").read_text())
+    assert doc["method"] == "dense" and doc["predicted_terms"] is None and "anisotropic" in doc["prediction"]["note"]
+    assert doc["brdf"]["kind"] == "ward" and doc["brdf"]["alpha_y"] == 0.4
+
+
 def test_factorize_sphere_measured_prediction_and_dense(tmp_path: Path) -> None:
     out = tmp_path / "g"
     r = run("factorize", "microfacet:sigma=0.3", "--domain", "hemisphere", "--resolution", "12", "--method",
@@ -60,7 +70,7 @@ def test_factorize_sphere_measured_prediction_and_dense(tmp_path: Path) -> None:
         (["phong:s=-1"], "s must"),
         (["nosuch:x=1"], "nosuch"),
         (["phong:s=10", "--resolution", "1"], "n_theta"),
-        (["kajiya-kay:s=4"], "tangent"),
+        (["phong:s=10", "--phi", "0"], "n_phi"),
         (["phong:s=10", "--domain", "sphere", "--no-cosine"], "hemisphere"),
     ],
 )
