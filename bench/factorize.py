@@ -1,6 +1,6 @@
 """In-out factorization benchmark and calibration (Mahajan, Tseng & Ramamoorthi 2008; relight.factorization).
 
-    python bench/factorize.py [--out bench/results/factorize.json] [--quick]
+    python bench/factorize.py [--out bench/results/factorize.json] [--quick] [--only PART] [--threads N]
 
 1. **Phong** (Fig. 3A, eq. 13): K at 90 / 95 / 99 % over the hemisphere and the sphere (block SVD, 64 x 64 Gauss
    nodes, converged for s <= 50), the SVD-free predictions (``relight.factor_predict``), K / s and the least-squares
@@ -10,9 +10,12 @@
    ``HALF_ANGLE_SLOPE``); ``--quick`` skips the sharpest lobes.
 3. **Singular values vs F_l** on the sphere (Phong s = 10, 40 x 40): largest error for l <= 9 on the Gauss and
    equal-area grids.
-4. **Timing**: block SVD at 1000 theta nodes per hemisphere (Phong s = 30, 64 azimuths), the block SVD on the
-   paper's 40^4 grid and the dense SVD of the same 1600 x 1600 matrix, in one run. Wall-clock on whatever machine
-   runs this (the 2-core development machine is shared): compare ratios, not absolute seconds across machines.
+4. **Timing**: block SVD at 1000 theta nodes per hemisphere (Phong s = 30, 64 azimuths) with the randomized
+   low-rank block SVD (default) and with full per-block decompositions, the block SVD on the paper's 40^4 grid and
+   the dense SVD of the same 1600 x 1600 matrix, in one run: wall-clock and process CPU seconds. BLAS runs with
+   ``--threads`` threads (default 1, set before numpy loads: on the shared 2-core machine multi-threaded OpenBLAS
+   spin-waits and inflates CPU time ~100x for these small matrices). Compare ratios within one run; wall-clock
+   on a loaded machine exceeds CPU time by the load.
 
 Prints markdown tables and writes JSON. This is not a test.
 """
@@ -27,7 +30,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+if __name__ == "__main__":  # BLAS threads must be fixed before numpy loads
+    _threads = sys.argv[sys.argv.index("--threads") + 1] if "--threads" in sys.argv[:-1] else "1"
+    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[_var] = _threads
+
+import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -101,21 +109,33 @@ def sigma_accuracy() -> dict[str, float]:
 
 
 def timing() -> dict[str, Any]:
+    import relight.factorization as fz
+
     b = parse_brdf("phong:s=30")
     fine = factorize(b, n_theta=1000, n_phi=64)
+    saved = fz.LOWRANK_MIN_ROWS
+    fz.LOWRANK_MIN_ROWS = 10**9
+    try:
+        full = factorize(b, n_theta=1000, n_phi=64)
+    finally:
+        fz.LOWRANK_MIN_ROWS = saved
     t0 = time.perf_counter()
     small = factorize(b, n_theta=40)
     t_small = time.perf_counter() - t0
     dense = factorize(b, n_theta=40, method="dense")
     out = {"block_1000": {"seconds": fine.seconds, "cpu_seconds": fine.cpu_seconds, "terms": fine.terms,
                           "blocks": fine.blocks_decomposed},
+           "block_1000_full": {"seconds": full.seconds, "cpu_seconds": full.cpu_seconds, "terms": full.terms},
            "block_40": {"seconds": t_small, "cpu_seconds": small.cpu_seconds, "terms": small.terms},
            "dense_40": {"seconds": dense.seconds, "cpu_seconds": dense.cpu_seconds, "terms": dense.terms},
-           "cpus": os.cpu_count(), "load_average": os.getloadavg()}
-    print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+           "cpus": os.cpu_count(), "load_average": os.getloadavg(),
+           "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS")}
+    print(f"\nload average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs, "
+          f"BLAS threads {os.environ.get('OPENBLAS_NUM_THREADS')}")
     print("| SVD | grid | wall s | CPU s | K 99 % |\n|---|---|---|---|---|")
     print(f"| block | 1000 x 64 | {fine.seconds:.2f} | {fine.cpu_seconds:.2f} | {fine.terms[0.99]} "
-          f"({fine.blocks_decomposed} blocks) |")
+          f"({fine.blocks_decomposed} blocks, low-rank) |")
+    print(f"| block | 1000 x 64 | {full.seconds:.2f} | {full.cpu_seconds:.2f} | {full.terms[0.99]} (full eigen) |")
     print(f"| block | 40 x 40 | {t_small:.3f} | {small.cpu_seconds:.3f} | {small.terms[0.99]} |")
     print(f"| dense | 40 x 40 | {dense.seconds:.2f} | {dense.cpu_seconds:.2f} | {dense.terms[0.99]} |")
     return out
@@ -126,6 +146,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(REPO / "bench" / "results" / "factorize.json"))
     ap.add_argument("--quick", action="store_true", help="skip sigma = 0.15 (minutes on 2 cores)")
     ap.add_argument("--only", choices=["phong", "half-angle", "accuracy", "timing"], help="run one part")
+    ap.add_argument("--threads", default="1", help="BLAS threads (read before numpy loads; default 1)")
     args = ap.parse_args()
     parts = {"phong": phong_table, "half-angle": lambda: half_angle_table(args.quick), "accuracy": sigma_accuracy,
              "timing": timing}

@@ -115,6 +115,8 @@ def _mean_channels(v: Any, shape: tuple[int, ...]) -> FloatArray:
     a = np.asarray(v, dtype=np.float64)
     if a.shape == shape:
         return a
+    if a.ndim == len(shape) + 1 and a.shape[-1] == 1:
+        return a[..., 0]
     if a.ndim == len(shape) + 1:
         return np.asarray(a.mean(axis=-1), dtype=np.float64)
     raise InputError(f"a BRDF returned values of shape {a.shape} for directions of shape {shape + (3,)}")
@@ -166,14 +168,18 @@ def _lobe_kernel(lobe: Lobe, include_cosine: bool) -> Kernel:
         center = lobe.center
 
         def iso(mu_o: FloatArray, mu_i: FloatArray, dphi: FloatArray) -> FloatArray:
-            mo, mi, dp = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (mu_o, mu_i, dphi)))
+            # natural broadcasting: cos(dphi) and the sines are evaluated on their own (small) shapes only
+            mo, mi, dp = (np.asarray(x, dtype=np.float64) for x in (mu_o, mu_i, dphi))
             if center == "R":  # R = (-x, -y, z) of w_o (n = +z), w_o at phi = 0
                 so = np.sqrt(np.clip(1.0 - mo * mo, 0.0, None))
                 si = np.sqrt(np.clip(1.0 - mi * mi, 0.0, None))
-                t = mo * mi - so * si * np.cos(dp)
+                t = mo * mi - (so * si) * np.cos(dp)
             else:
-                t = mi
-            return _mean_channels(lobe.u(t), t.shape) * _cos_factor(mi, include_cosine)
+                t = np.broadcast_to(mi, np.broadcast_shapes(mo.shape, mi.shape, dp.shape))
+            val = _mean_channels(lobe.u(t), t.shape)
+            if include_cosine:
+                return val
+            return val * _cos_factor(np.broadcast_to(mi, t.shape), include_cosine)
 
         def full(wi: FloatArray, wo: FloatArray) -> FloatArray:
             wi, wo = np.broadcast_arrays(np.asarray(wi, np.float64), np.asarray(wo, np.float64))

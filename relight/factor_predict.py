@@ -39,8 +39,9 @@ THETA_D_MAX = np.radians(60.0)
 N_THETA_H, N_THETA_D, N_PHI_D = 512, 24, 24
 #: Energy fraction left out when the radial spectrum is computed (its tail beyond is negligible for every count).
 SPECTRUM_TAIL = 1e-8
-#: K / (l*)^2 of eq. 14's half-angle lobe on the hemisphere, from the converged block SVD (bench/factorize.py,
-#: sigma = 0.15 ... 0.4, n_theta >= 200); the paper's "(l*)^2 / 4" is 0.25.
+#: K / (l*)^2 of eq. 14's half-angle lobe on the hemisphere from the converged block SVD (bench/factorize.py):
+#: 90 %: 0.22-0.28, 95 %: 0.25-0.30, 99 %: 0.32-0.34 for sigma = 0.15 ... 0.3 (0.43 at sigma = 0.4: wide lobes need
+#: more, as the paper notes). The paper's "(l*)^2 / 4" is 0.25; at 99 % it under-predicts by ~25 %.
 HALF_ANGLE_SLOPE: dict[float, float] = {0.9: 0.24, 0.95: 0.27, 0.99: 0.33}
 
 

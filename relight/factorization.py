@@ -42,6 +42,16 @@ THRESHOLDS: tuple[float, ...] = (0.9, 0.95, 0.99)
 BLOCK_MEMORY = 256 * 2**20
 #: Kernel samples evaluated at once (elements of one chunk of rows).
 CHUNK_ELEMS = 2**21
+#: Blocks of at least this many rows use the randomized low-rank SVD (:func:`lowrank_svd`) instead of a full one.
+LOWRANK_MIN_ROWS = 256
+#: First rank tried by :func:`lowrank_svd` (doubled until the residual is met).
+LOWRANK_START = 48
+#: Residual of a low-rank block relative to the whole kernel's norm sqrt(sum sigma^2): values below it are dropped
+#: and every returned value is exact to it, far below any K threshold's resolution.
+LOWRANK_TOL = 1e-10
+#: Relative distance within which singular values count as one degenerate group (quadrature error of the sphere's
+#: 2l + 1 copies of F_l: 2e-10 at 40 x 40, bench/factorize.py; pairs +-m of the block SVD are bit-identical).
+DEGENERATE_RTOL = 1e-8
 #: Relative slack when comparing a cumulative energy with a threshold (rounding of sums of sigma^2).
 _ENERGY_SLACK = 1e-12
 
@@ -74,6 +84,11 @@ class Factorization:
     cpu_seconds: float = 0.0  # process CPU time (all threads): comparable across loads, unlike wall-clock
     blocks_decomposed: int = 0
 
+    @property
+    def terms_whole(self) -> dict[float, int]:
+        """K per threshold rounded up to whole degenerate groups (:func:`whole_groups`)."""
+        return {t: whole_groups(self.singular_values, k) for t, k in self.terms.items()}
+
     def captured(self, k: int) -> float:
         """Energy fraction of the first k terms."""
         return float(np.sum(self.singular_values[:k] ** 2) / self.total_energy) if self.total_energy > 0 else 1.0
@@ -81,6 +96,7 @@ class Factorization:
     def as_dict(self, max_values: int = 400) -> dict[str, Any]:
         return {
             "terms": {f"{t:g}": k for t, k in self.terms.items()},
+            "terms_whole_groups": {f"{t:g}": k for t, k in self.terms_whole.items()},
             "singular_values": [float(x) for x in self.singular_values[:max_values]],
             "frequencies": [int(x) for x in self.frequencies[:max_values]],
             "total_energy": self.total_energy,
@@ -109,6 +125,18 @@ def terms_for(values: FloatArray, total: float, thresholds: tuple[float, ...] = 
         k = int(np.searchsorted(cum, t * total * (1.0 - _ENERGY_SLACK))) + 1
         out[float(t)] = min(k, int(cum.size)) if cum.size else 0
     return out
+
+
+def whole_groups(values: FloatArray, k: int, rtol: float = DEGENERATE_RTOL) -> int:
+    """K extended over the rest of the k-th value's degenerate group (values within rtol of it), so that a
+    truncation never splits a pair (m, -m) or, on the sphere, a band: the full sum of such a group is
+    frame-invariant, a split one is not (design notes §4.5.8)."""
+    if k <= 0 or k >= values.size:
+        return k
+    ref = values[k - 1]
+    while k < values.size and abs(values[k] - ref) <= rtol * max(abs(ref), 1e-300):
+        k += 1
+    return k
 
 
 def _dense(kernel: Kernel, grid: Grid, thresholds: tuple[float, ...], n_factors: int) -> Factorization:
@@ -161,12 +189,37 @@ def _assemble(kernel: Kernel, grid: Grid, keep: list[int], real: bool, energy: F
 
 
 def _block_values(b: NDArray[Any]) -> FloatArray:
-    """Singular values of one block: |eigenvalues| of a real symmetric block (LAPACK syevd: about 3x cheaper than
-    an SVD), else the SVD's."""
+    """All singular values of a small block: |eigenvalues| of a real symmetric block (LAPACK syevd: about 3x cheaper
+    than an SVD), else the SVD's."""
     if np.isrealobj(b) and np.allclose(b, b.T, rtol=0.0, atol=1e-13 * max(float(np.abs(b).max()), 1e-300)):
         ev = scipy.linalg.eigh(b, eigvals_only=True, driver="evd", check_finite=False)
         return np.asarray(np.sort(np.abs(ev))[::-1], dtype=np.float64)
     return np.asarray(np.linalg.svd(b, compute_uv=False), dtype=np.float64)
+
+
+def lowrank_svd(b: NDArray[Any], tol: float, *, seed: int = 0) -> tuple[FloatArray, float, NDArray[Any], NDArray[Any]]:
+    """Leading singular triplets of b up to a residual ``||b - Q Q^H b||_F <= tol``: ``(s, residual, u, vh)``.
+
+    Randomized range finder with two power iterations (Halko, Martinsson & Tropp 2011, Algs. 4.4 and 5.1), the rank
+    doubled from ``LOWRANK_START`` until the *measured* residual meets tol, so every singular value of b is matched
+    to within tol (Weyl) and every value not returned is below tol. Falls back to the full SVD (residual 0) once the
+    rank reaches half the block.
+    """
+    n = min(b.shape)
+    rng = np.random.default_rng(seed)
+    k = LOWRANK_START
+    while 2 * k < n:
+        q = np.linalg.qr(b @ rng.standard_normal((b.shape[1], k)))[0]
+        for _ in range(2):
+            q = np.linalg.qr(b @ np.linalg.qr(b.conj().T @ q)[0])[0]
+        small = q.conj().T @ b
+        resid = float(np.linalg.norm(b - q @ small))
+        if resid <= tol:
+            u, s, vh = np.linalg.svd(small, full_matrices=False)
+            return np.asarray(s, dtype=np.float64), resid, q @ u, vh
+        k *= 2
+    u, s, vh = np.linalg.svd(b, full_matrices=False)
+    return np.asarray(s, dtype=np.float64), 0.0, u, vh
 
 
 def _block(
@@ -187,13 +240,19 @@ def _block(
     # the K-th largest value so far at the top threshold (never above the final one, so skipping blocks whose
     # Frobenius norm lies below it is exact)
     sigma_k = -1.0
+    residual = 0.0  # largest residual of a low-rank block: no value of it above this is missing
     while True:
         stored = {m: blocks[j] for j, m in enumerate(keep)}
         for m in sorted(keep, key=lambda q: -energy[q]):
             pending.discard(m)
             if math.sqrt(energy[m]) < sigma_k:  # every singular value of B_m is below the K-th: cannot count
                 continue
-            values[m] = _block_values(stored[m])
+            if n >= LOWRANK_MIN_ROWS:
+                vals_m, resid, _, _ = lowrank_svd(stored[m], LOWRANK_TOL * math.sqrt(total))
+                residual = max(residual, resid)
+                values[m] = vals_m
+            else:
+                values[m] = _block_values(stored[m])
             merged = np.sort(np.concatenate([np.repeat(v, _multiplicity(q, n_phi)) for q, v in values.items()]))
             merged = merged[::-1]
             k_top = max(terms_for(merged, total, (top,))[top], n_values, n_factors)
@@ -204,7 +263,7 @@ def _block(
         keep = sorted(pending, key=lambda q: -energy[q])[:window]
         blocks = _assemble(kernel, grid, keep, real, None)
     undecomposed = [m for m in range(n_freq) if m not in values]
-    bound = math.sqrt(max((energy[p] for p in undecomposed), default=0.0))
+    bound = max(math.sqrt(max((energy[p] for p in undecomposed), default=0.0)), residual)
     vals = np.concatenate([np.repeat(v, _multiplicity(q, n_phi)) for q, v in values.items()])
     freqs = np.concatenate([np.full(v.size * _multiplicity(q, n_phi), q, dtype=np.int64) for q, v in values.items()])
     order = np.argsort(-vals, kind="stable")
@@ -233,7 +292,10 @@ def _block_factors(
     sw = np.sqrt(grid.w_mu)
     out: list[Factor] = []
     for m, count in want.items():
-        u, s, vh = np.linalg.svd(stored[m])
+        if grid.n_theta >= LOWRANK_MIN_ROWS:
+            s, _, u, vh = lowrank_svd(stored[m], LOWRANK_TOL * math.sqrt(res.total_energy))
+        else:
+            u, s, vh = np.linalg.svd(stored[m])
         n_vec = (count + 1) // 2 if m > 0 and 2 * m != grid.n_phi else count
         for j in range(min(n_vec, s.size)):
             gu, hu = np.conj(vh[j]) / sw, u[:, j] / sw

@@ -226,3 +226,30 @@ def test_bad_brdfs() -> None:
         factorize(lambda wi, wo: np.zeros(3), n_theta=4)
     with pytest.raises(InputError, match="cannot factor"):
         factorize(42)
+
+
+def test_lowrank_blocks_match_full_decomposition(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Large blocks (>= LOWRANK_MIN_ROWS rows, lowered here to keep the test small) take the randomized low-rank
+    # SVD; against the full eigen/SVD path on the same grid every listed value agrees to the low-rank tolerance
+    # (1e-10 of the kernel's norm) and K is identical.
+    import relight.factorization as fz
+
+    b = parse_brdf("phong:s=10")
+    monkeypatch.setattr(fz, "LOWRANK_MIN_ROWS", 100)
+    low = factorize(b, n_theta=120, n_phi=8, n_values=60, n_factors=4)
+    monkeypatch.setattr(fz, "LOWRANK_MIN_ROWS", 10**6)
+    full = factorize(b, n_theta=120, n_phi=8, n_values=60, n_factors=4)
+    k = min(low.singular_values.size, full.singular_values.size)
+    assert k >= 60 and low.terms == full.terms
+    np.testing.assert_allclose(low.singular_values[:k], full.singular_values[:k],
+                               atol=1e-10 * math.sqrt(full.total_energy))
+    for a, c in zip(low.factors, full.factors, strict=True):
+        assert a.m == c.m and a.sigma == pytest.approx(c.sigma, rel=1e-10)
+    # the range finder itself: a rank-5 matrix plus 1e-13 noise is captured with a residual at the noise level
+    rng = np.random.default_rng(3)
+    m = rng.standard_normal((300, 5)) @ rng.standard_normal((5, 300)) + 1e-13 * rng.standard_normal((300, 300))
+    s, resid, u, vh = fz.lowrank_svd(m, 1e-9)
+    ref = np.linalg.svd(m, compute_uv=False)
+    assert resid <= 1e-9 and s.size == fz.LOWRANK_START
+    np.testing.assert_allclose(s[:5], ref[:5], rtol=1e-12)
+    np.testing.assert_allclose((u * s) @ vh, m, atol=1e-9)

@@ -88,3 +88,17 @@ def test_half_angle_prediction_against_converged_svd(sigma: float, n_theta: int,
     pred = predict_terms(b)["terms"]
     for t, tol in ((0.9, 0.3), (0.95, 0.1), (0.99, 0.1)):
         assert abs(pred[t] - svd[t]) <= tol * svd[t] + 1, (t, pred, svd)
+
+
+def test_whole_degenerate_groups() -> None:
+    # On the sphere the groups are whole bands: s = 30 needs 141 values at 99 %, i.e. band 11 split; whole
+    # groups give (11 + 1)^2 = 144 (eq. 10). On the hemisphere only the pairs +-m are degenerate: at most +1.
+    b = parse_brdf("phong:s=30")
+    sph = factorize(b, n_theta=48, domain="sphere", n_values=200)
+    assert sph.terms[0.99] == 141 and sph.terms_whole[0.99] == 144
+    assert all(int(round(k**0.5)) ** 2 == k for k in sph.terms_whole.values())
+    hemi = factorize(b, n_theta=48, n_values=200)
+    for t, k in hemi.terms.items():
+        assert 0 <= hemi.terms_whole[t] - k <= 1
+        kw = hemi.terms_whole[t]
+        assert hemi.singular_values[kw - 1] > hemi.singular_values[kw] * (1 + 1e-8)
