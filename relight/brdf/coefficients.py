@@ -111,6 +111,12 @@ def radial_transfer(lobe: RadialLobe, lmax: int) -> RadialSpectrum:
     """``Lambda_l rho_l`` for l = 0..lmax by quadrature, with the lobe's band and total energies."""
     if lmax < 0:
         raise ValueError(f"lmax must be >= 0, got {lmax}")
+    closed = getattr(lobe, "transfer", None)  # lobes with a closed form (relight.brdf.vmf) skip the quadrature
+    if callable(closed):
+        tr = np.asarray(closed(lmax), dtype=np.float64)
+        rho_c = tr / lambda_l(lmax)[:, None]
+        return RadialSpectrum(transfer=tr, band_energy=rho_c * rho_c,
+                              total_energy=np.asarray(lobe.total_energy(), dtype=np.float64))  # type: ignore[attr-defined]
     theta, w = _theta_nodes(lmax, lobe_width(lobe))
     t = np.cos(theta)
     u = np.asarray(lobe.u(t), dtype=np.float64)  # (N, C)

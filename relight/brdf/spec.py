@@ -10,7 +10,9 @@ String grammar (whitespace around tokens is ignored)::
 e.g. ``lambert``, ``phong:s=32``, ``microfacet:sigma=0.2``, ``torrance-sparrow:alpha=0.2,fresnel=none``,
 ``ggx:alpha=0.3,fresnel=schlick,f0=0.04``, ``blinn-phong:s=64``, ``lafortune:preset=housepaint-blue``,
 ``ward:alpha=0.1,rho_s=0.05,rho_d=0.5``, ``oren-nayar:sigma=0.3``, ``kajiya-kay:s=32``,
-``merl:gold.binary``, ``measured:table.npz``, ``lobe1d:lobe.json``, ``lambert:albedo=0.5+phong:s=64``.
+``merl:gold.binary``, ``measured:table.npz``, ``lobe1d:lobe.json``, ``lambert:albedo=0.5+phong:s=64``,
+``vmf:sigma=0.1`` (a normalised spherical Gaussian, sigma in radians), ``gaussian-lobes:fit.json`` (a fitted or
+hand-written Gaussian-lobe material, ``relight.brdf.gaussian_lobes``).
 Anisotropic forms (seed 003; ``relight.brdf.anisotropic``, tangent-frame BRDFs):
 ``torrance-sparrow:alpha_u=0.1,alpha_v=0.4,distribution=ggx,fresnel=none``,
 ``ashikhmin-shirley:nu=48,nv=16,rs=0.05,rd=0``, ``ward:alpha_x=0.1,alpha_y=0.3,rho_d=0,rho_s=1``. Only
@@ -42,6 +44,7 @@ from typing import Any
 from relight.brdf.anisotropic import AnisotropicTorranceSparrow, AshikhminShirley, WardAnisotropic, check_exclusive
 from relight.brdf.base import Lobe
 from relight.brdf.frame import FrameBRDF, FrameSum, as_frame_brdf
+from relight.brdf.gaussian_lobes import GaussianLobes
 from relight.brdf.measured import MERLBRDF, TabulatedBRDF
 from relight.brdf.models import (
     GGX,
@@ -57,6 +60,7 @@ from relight.brdf.models import (
     TorranceSparrow,
     WardIsotropic,
 )
+from relight.brdf.vmf import VonMisesFisher
 from relight.errors import InputError
 
 Brdf = Lobe | SumBRDF
@@ -86,9 +90,11 @@ _KEYS: dict[str, dict[str, str]] = {
     "kajiya-kay": {"s": "number"},
     "merl": {"path": "path", "lookup": "word"},
     "measured": {"path": "path"},
+    "vmf": {"sigma": "number", "weight": "color"},
+    "gaussian-lobes": {"elevations": "any", "fit": "any", "path": "path"},
 }
 #: Kinds whose string argument is a file path rather than key=value pairs.
-_PATH_KINDS = ("merl", "measured", "lobe1d")
+_PATH_KINDS = ("merl", "measured", "lobe1d", "gaussian-lobes")
 VALID_KINDS = sorted([*_KEYS, "sum"])
 
 
@@ -119,6 +125,7 @@ def _build(kind: str, kw: dict[str, Any]) -> Lobe | FrameBRDF:
         "oren-nayar": OrenNayar,
         "kajiya-kay": KajiyaKay,
         "merl": MERLBRDF,
+        "vmf": VonMisesFisher,
     }
     if kind == "measured":
         if "path" not in kw:
@@ -136,6 +143,15 @@ def _build(kind: str, kw: dict[str, Any]) -> Lobe | FrameBRDF:
         else:
             table = kw
         return Lobe1D(table)
+    if kind == "gaussian-lobes":
+        if "path" in kw:
+            if set(kw) != {"path"}:
+                raise InputError("gaussian-lobes: give either path or elevations, not both")
+            data = _read_json(Path(kw["path"]), "gaussian-lobes")
+            if not isinstance(data, dict):
+                raise InputError("gaussian-lobes: the JSON file must hold an object with 'elevations'")
+            kw = {k: v for k, v in data.items() if k != "kind"}
+        return GaussianLobes.from_spec(**kw)
     if kind == "merl" and "path" not in kw:
         raise InputError("merl: needs a path to a .binary file")
     try:

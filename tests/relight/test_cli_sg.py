@@ -1,0 +1,54 @@
+"""``relight fit`` and ``relight chain`` (relight.cli_sg): the JSON contract, files and errors."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from relight.cli import main
+from relight.envmap import read_envmap, resample_latlong, write_exr
+
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
+
+
+def test_fit_writes_the_contract(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "fit.json"
+    code = main(["fit", "torrance-sparrow:alpha=0.2,fresnel=none", "--lobes", "2", "--elevations", "3",
+                 "--theta-max", "40", "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "theta_o" in text and "error %" in text
+    data = json.loads(out.read_text())
+    assert data["kind"] == "gaussian-lobes"
+    el = data["elevations"]
+    assert len(el) == 3 and el[0]["theta_o"] == 0.0 and el[-1]["theta_o"] == pytest.approx(math.radians(40))
+    for e in el:
+        assert 0.0 <= e["error"] < 0.05 and len(e["lobes"]) == 2
+        for lobe in e["lobes"]:
+            assert set(lobe) == {"mu", "sigma", "weight"} and len(lobe["weight"]) == 3
+    # the file is itself a material: it fits back to itself
+    assert main(["fit", str(out), "--lobes", "2", "--elevations", "3", "--theta-max", "40",
+                 "--out", str(tmp_path / "again.json")]) == 0
+    again = json.loads((tmp_path / "again.json").read_text())
+    assert max(e["error"] for e in again["elevations"]) < 1e-3
+
+
+def test_chain_writes_levels(tmp_path: Path) -> None:
+    env = tmp_path / "env.exr"
+    write_exr(env, np.asarray(resample_latlong(read_envmap(DATA / "courtyard.exr").pixels, 32), dtype=np.float32))
+    assert main(["chain", str(env), "--levels", "3", "--ratio", "sqrt2", "--out", str(tmp_path / "c")]) == 0
+    man = json.loads((tmp_path / "c" / "chain.json").read_text())
+    assert len(man["levels"]) == 3 and man["dtype"] == "float16"
+    assert man["levels"][1]["sigma"] == pytest.approx(man["levels"][0]["sigma"] * math.sqrt(2))
+    assert all((tmp_path / "c" / e["file"]).is_file() for e in man["levels"])
+
+
+def test_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["fit", "phong:s=10", "--lobes", "0", "--out", str(tmp_path / "x.json")]) == 2
+    assert "lobes" in capsys.readouterr().err
+    assert main(["fit", "kajiya-kay:s=8", "--out", str(tmp_path / "x.json")]) == 2
+    assert "isotropic" in capsys.readouterr().err
