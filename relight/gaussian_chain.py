@@ -24,6 +24,7 @@ relative L2 error against the exact intermediate Gaussian ``sigma_0 ratio^x`` in
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -140,7 +141,8 @@ def build_chain(
         ts = time.perf_counter()
         m = sh.synthesize(b_lm, f_b, s, 2 * s).astype(np.float32)
         synth += time.perf_counter() - ts
-        out.append(ChainLevel(sigma=float(lobe.sigma), map=m, orders={**choice.as_dict(), "size": s}))
+        orders = {**dataclasses.asdict(choice.report()), "size": s}
+        out.append(ChainLevel(sigma=float(lobe.sigma), map=m, orders=orders))
     report = {
         "representation": "gaussian_chain",
         "sigma0": float(sig[0]),

@@ -1,0 +1,60 @@
+"""Seed 002 fit and chain benchmark: per-elevation error table, fit time, chain time, level-blend kernel error.
+
+    .venv/bin/python bench/fit.py [--brdf SPEC] [--json OUT.json]
+
+Fits the BRDF (default Torrance-Sparrow Beckmann alpha 0.2, no Fresnel: the issue's target model) with K = 3, N = 15
+and again with lobes added only where K = 3 exceeds 5 % (up to 5), prints both error tables with wall-clock and CPU
+seconds (the 2-core machine is shared: CPU seconds are the stable figure), then the Gaussian chain of
+data/envmaps/courtyard.exr (ratios 2 and sqrt 2) and the blend kernel errors; the same numbers as JSON at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+from relight.brdf.spec import parse_brdf
+from relight.envmap import read_envmap
+from relight.gaussian_chain import RATIOS, blend_kernel_error, build_chain
+from relight.sgfit import FitSettings, error_table, fit_gaussian_lobes
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--brdf", default="torrance-sparrow:alpha=0.2,fresnel=none")
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    brdf = parse_brdf(args.brdf)
+    out: dict[str, object] = {"brdf": args.brdf}
+    for name, st in (("K3", FitSettings()), ("K3_upto5", FitSettings(max_lobes=5))):
+        w0, c0 = time.perf_counter(), time.process_time()
+        m = fit_gaussian_lobes(brdf, st)
+        wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+        print(f"== {name}: wall {wall:.1f} s, CPU {cpu:.1f} s")
+        print(error_table(m))
+        out[name] = {"theta_o_deg": [math.degrees(x) for x in m.elevations], "errors": m.fit["errors"],
+                     "mid_errors": m.fit["mid_errors"], "lobes_used": m.fit["lobes_used"],
+                     "wall_s": wall, "cpu_s": cpu}
+    env = read_envmap(DATA / "courtyard.exr").pixels
+    for rname, ratio in RATIOS.items():
+        w0 = time.perf_counter()
+        ch = build_chain(env, ratio=ratio)
+        wall = time.perf_counter() - w0
+        print(f"chain ratio {rname}: {len(ch.levels)} levels, wall {wall:.2f} s, {ch.report['timings']}")
+        out[f"chain_{rname}"] = {"levels": len(ch.levels), "wall_s": wall, "timings": ch.report["timings"],
+                                 "blend_kernel_error": {str(f): blend_kernel_error(ratio, f) for f in (0.25, .5, .75)}}
+        print(f"  blend kernel error at 1/4, 1/2, 3/4 level: "
+              f"{[round(100 * blend_kernel_error(ratio, f), 1) for f in (0.25, 0.5, 0.75)]} %")
+    text = json.dumps(out, indent=1)
+    print(text)
+    if args.json:
+        Path(args.json).write_text(text)
+
+
+if __name__ == "__main__":
+    main()
