@@ -111,7 +111,7 @@ def radial_transfer(lobe: RadialLobe, lmax: int) -> RadialSpectrum:
     """``Lambda_l rho_l`` for l = 0..lmax by quadrature, with the lobe's band and total energies."""
     if lmax < 0:
         raise ValueError(f"lmax must be >= 0, got {lmax}")
-    closed = getattr(lobe, "transfer", None)  # lobes with a closed form (relight.brdf.vmf) skip the quadrature
+    closed = getattr(lobe, "closed_form_transfer", None)  # closed forms (relight.brdf.vmf) skip the quadrature
     if callable(closed):
         tr = np.asarray(closed(lmax), dtype=np.float64)
         rho_c = tr / lambda_l(lmax)[:, None]

@@ -141,6 +141,9 @@ class VonMisesFisher(RadialLobe):
         """Closed-form ``Lambda_l rho_l`` per channel, shape (lmax+1, channels)."""
         return np.asarray(vmf_transfer(self.kappa, lmax)[:, None] * self.weight[None, :], dtype=np.float64)
 
+    #: what ``relight.brdf.coefficients.radial_transfer`` calls instead of its quadrature
+    closed_form_transfer = transfer
+
     def total_energy(self) -> FloatArray:
         """``int u^2 dOmega`` per channel (closed form)."""
         return np.asarray(vmf_energy(self.kappa) * self.weight**2, dtype=np.float64)
