@@ -52,9 +52,10 @@ class Hits:
     v: FloatArray
 
 
-def _check_rays(origins: NDArray[np.floating], dirs: NDArray[np.floating]) -> tuple[FloatArray, FloatArray]:
-    o = np.asarray(origins, dtype=np.float64)
-    d = np.asarray(dirs, dtype=np.float64)
+def _check_rays(origins: NDArray[np.floating], dirs: NDArray[np.floating],
+                dtype: type[np.floating] = np.float64) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+    o = np.asarray(origins, dtype=dtype)
+    d = np.asarray(dirs, dtype=dtype)
     if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
         raise ValueError(f"origins and directions must both be (n, 3), got {o.shape} and {d.shape}")
     return o, d
@@ -85,9 +86,10 @@ class RayCaster:
     def intersect(self, origins: NDArray[np.floating], dirs: NDArray[np.floating],
                   tfar: float = np.inf) -> Hits:
         """Nearest hit of every ray with ``0 < t < tfar``."""
-        o, d = _check_rays(origins, dirs)
         if self.backend == "numpy":
-            return _mt_nearest(self.positions, self.faces, o, d, tfar)
+            o64, d64 = _check_rays(origins, dirs)
+            return _mt_nearest(self.positions, self.faces, o64, d64, tfar)
+        o, d = _check_rays(origins, dirs, np.float32)
         n = o.shape[0]
         prim = np.full(n, -1, dtype=np.intp)
         t = np.full(n, np.inf)
@@ -96,8 +98,7 @@ class RayCaster:
         for s in range(0, n, CHUNK):
             sl = slice(s, min(n, s + CHUNK))
             m = sl.stop - sl.start
-            res = self._scene.run(o[sl].astype(np.float32), d[sl].astype(np.float32),
-                                  dists=np.full(m, min(tfar, 3.4e38), dtype=np.float32), output=1)
+            res = self._scene.run(o[sl], d[sl], dists=np.full(m, min(tfar, 3.4e38), dtype=np.float32), output=1)
             p = np.asarray(res["primID"], dtype=np.intp)
             hit = p >= 0
             prim[sl] = np.where(hit, p, -1)
@@ -109,22 +110,23 @@ class RayCaster:
     def occluded(self, origins: NDArray[np.floating], dirs: NDArray[np.floating],
                  tfar: float = np.inf) -> NDArray[np.bool_]:
         """True for every ray that hits any triangle with ``0 < t < tfar`` (cheaper than :meth:`intersect`)."""
-        o, d = _check_rays(origins, dirs)
         if self.backend == "numpy":
-            return np.asarray(_mt_nearest(self.positions, self.faces, o, d, tfar).prim >= 0)
+            o64, d64 = _check_rays(origins, dirs)
+            return np.asarray(_mt_nearest(self.positions, self.faces, o64, d64, tfar).prim >= 0)
+        o, d = _check_rays(origins, dirs, np.float32)  # Embree works in float32: convert once
         out = np.empty(o.shape[0], dtype=bool)
         for s in range(0, o.shape[0], CHUNK):
             sl = slice(s, min(o.shape[0], s + CHUNK))
             m = sl.stop - sl.start
             # embreex's OCCLUDED query returns 0 for an occluded ray and -1 for a free one
-            res = self._scene.run(o[sl].astype(np.float32), d[sl].astype(np.float32),
-                                  dists=np.full(m, min(tfar, 3.4e38), dtype=np.float32), query="OCCLUDED")
+            res = self._scene.run(o[sl], d[sl], dists=np.full(m, min(tfar, 3.4e38), dtype=np.float32),
+                                  query="OCCLUDED")
             out[sl] = np.asarray(res) == 0
         return out
 
 
-def moller_trumbore(p0: FloatArray, p1: FloatArray, p2: FloatArray, o: FloatArray,
-                    d: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def moller_trumbore(p0: FloatArray, p1: FloatArray, p2: FloatArray, o: NDArray[np.floating],
+                    d: NDArray[np.floating]) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Möller–Trumbore (1997, §2) for broadcast rays and triangles: ``(t, u, v)`` with NaN t where the ray's line
     misses the triangle (parallel, or a barycentric outside [0, 1]).
 
@@ -146,7 +148,8 @@ def moller_trumbore(p0: FloatArray, p1: FloatArray, p2: FloatArray, o: FloatArra
     return np.where(inside, t, np.nan), u, v
 
 
-def _mt_nearest(positions: FloatArray, faces: IndexArray, o: FloatArray, d: FloatArray, tfar: float) -> Hits:
+def _mt_nearest(positions: FloatArray, faces: IndexArray, o: NDArray[np.floating], d: NDArray[np.floating],
+                tfar: float) -> Hits:
     """Nearest hit by brute force over every triangle (chunks of rays x all triangles)."""
     p0, p1, p2 = (positions[faces[:, k]] for k in range(3))
     n, m = o.shape[0], faces.shape[0]

@@ -125,8 +125,8 @@ def free_rays(caster: RayCaster, points: FloatArray, normals: FloatArray, dirs: 
     """``V(x, w_s)`` for points x (B, 3) with normals (B, 3) and directions (R, 3): True where the ray from
     ``x + offset n`` (``relight.raycast``) escapes the mesh, (B, R)."""
     b, r = points.shape[0], dirs.shape[0]
-    origins = np.repeat(points + offset * normals, r, axis=0)
-    return np.asarray(~caster.occluded(origins, np.tile(dirs, (b, 1))), dtype=bool).reshape(b, r)
+    origins = np.repeat((points + offset * normals).astype(np.float32), r, axis=0)
+    return np.asarray(~caster.occluded(origins, np.tile(dirs.astype(np.float32), (b, 1))), dtype=bool).reshape(b, r)
 
 
 @dataclass
@@ -138,13 +138,53 @@ class Block:
     arrays: dict[str, FloatArray] = field(default_factory=dict)
 
 
-def _estimate(weights: FloatArray, basis: FloatArray, rays: int) -> tuple[FloatArray, FloatArray]:
-    """``(4 pi / R) weights @ basis`` and its standard error (module docstring) for weights (B, R)."""
+def _estimate(weights: NDArray[np.floating], basis: NDArray[np.floating], rays: int,
+              binary: bool = False) -> tuple[FloatArray, FloatArray]:
+    """``(4 pi / R) weights @ basis`` and its standard error (module docstring) for weights (B, R), in the
+    precision of the arguments (float32 for visibility and transfer: 1024-term sums lose ~1e-6 relative, below
+    what float32 outputs keep; float64 for the shadow matrix). ``binary``: the weights are 0 or 1 (w^2 = w)."""
     scale = 4.0 * np.pi / rays
     mean = scale * (weights @ basis)
-    second = scale * scale * rays * ((weights * weights) @ (basis * basis))  # R * mean of f^2 with f = 4 pi w y
+    w2 = weights if binary else weights * weights
+    second = scale * scale * rays * (w2 @ (basis * basis))  # the mean of f^2 for f = 4 pi w y
     var = np.maximum(second - mean * mean, 0.0) / rays
-    return mean, np.sqrt(var)
+    return np.asarray(mean, dtype=np.float64), np.asarray(np.sqrt(var), dtype=np.float64)
+
+
+def _row_estimate(weights: NDArray[np.floating], rays: int) -> tuple[FloatArray, FloatArray]:
+    """:func:`_estimate` with the basis 1: ``(4 pi / R) sum_s w_s`` per row and its standard error."""
+    w = np.asarray(weights, dtype=np.float64)
+    mean = 4.0 * np.pi * w.mean(axis=1)
+    second = (4.0 * np.pi) ** 2 * (w * w).mean(axis=1)
+    return mean, np.sqrt(np.maximum(second - mean * mean, 0.0) / rays)
+
+
+def point_transfer(caster: RayCaster, points: FloatArray, normals: FloatArray, settings: TransferSettings,
+                   offset: float) -> dict[str, FloatArray]:
+    """The direct outputs (module docstring) at any surface points (B, 3) with normals (B, 3): the vertices of a
+    block, or the surface points under an image's pixels (``relight.mesh_render``)."""
+    s = settings
+    dirs = directions(s.rays, s.sampling, s.seed)
+    basis = sh_basis(dirs, s.order)
+    b, r = points.shape[0], s.rays
+    cosine = np.maximum(normals @ dirs.T, 0.0)  # (B, R)
+    out: dict[str, FloatArray] = {}
+    free_mask = free_rays(caster, points, normals, dirs, offset)
+    free = free_mask.astype(np.float32)
+    basis32 = basis.astype(np.float32)
+    vis, vis_err = _estimate(free, basis32, r, binary=True)
+    shaded = free * (cosine / np.pi).astype(np.float32)
+    ao, ao_err = _row_estimate(shaded, r)
+    out.update(visibility=vis, visibility_error=vis_err, ao=ao, ao_error=ao_err)
+    if s.kind == "diffuse_transfer":
+        t, t_err = _estimate(shaded, basis32, r)
+        out.update(transfer=t, transfer_error=t_err)
+    elif s.kind == "shadow_matrix":
+        n = basis.shape[1]
+        pair = (basis[:, :, None] * basis[:, None, :]).reshape(r, n * n)
+        m, m_err = _estimate(free_mask.astype(np.float64), pair, r, binary=True)
+        out.update(shadow_matrix=m.reshape(b, n, n), shadow_matrix_error=m_err.reshape(b, n, n))
+    return out
 
 
 def transfer_block(mesh: TriangleMesh, start: int, stop: int, settings: TransferSettings, *,
@@ -153,43 +193,31 @@ def transfer_block(mesh: TriangleMesh, start: int, stop: int, settings: Transfer
     computes the bounce ``T^b`` of the block instead (``diffuse_transfer`` only)."""
     s = settings
     caster = caster or RayCaster(mesh.positions, mesh.faces)
-    dirs = directions(s.rays, s.sampling, s.seed)
-    basis = sh_basis(dirs, s.order)
     pts, nrm = mesh.positions[start:stop], mesh.normals[start:stop]
+    out = Block(start, stop)
+    if previous is None:
+        out.arrays.update(point_transfer(caster, pts, nrm, s, ray_offset(mesh.positions)))
+        return out
+    dirs = directions(s.rays, s.sampling, s.seed)
     b, r = pts.shape[0], s.rays
     cosine = np.maximum(nrm @ dirs.T, 0.0)  # (B, R)
-    out = Block(start, stop)
-    if previous is not None:
-        origins = np.repeat(pts + ray_offset(mesh.positions) * nrm, r, axis=0)
-        hits = caster.intersect(origins, np.tile(dirs, (b, 1)))
-        prim = hits.prim.reshape(b, r)
-        fn = np.cross(mesh.positions[mesh.faces[:, 1]] - mesh.positions[mesh.faces[:, 0]],
-                      mesh.positions[mesh.faces[:, 2]] - mesh.positions[mesh.faces[:, 0]])
-        hit = prim >= 0
-        front = np.zeros_like(hit)
-        front[hit] = np.einsum("ij,ij->i", fn[prim[hit]], np.broadcast_to(dirs, (b, r, 3))[hit]) < 0.0
-        # T^b = rho (4 pi / R) sum_s front_s cos_s / pi sum_c bary_c T^{b-1}(corner c): a sparse (B x V) gather
-        w = (s.albedo * 4.0 * np.pi / r / np.pi) * np.where(front, cosine, 0.0)
-        rows, cols = np.nonzero(front)
-        tri = mesh.faces[prim[rows, cols]]
-        u, v = hits.u.reshape(b, r)[rows, cols], hits.v.reshape(b, r)[rows, cols]
-        bary = np.stack([1.0 - u - v, u, v], axis=1) * w[rows, cols][:, None]
-        gather = scipy.sparse.csr_matrix((bary.ravel(), (np.repeat(rows, 3), tri.ravel())),
-                                         shape=(b, mesh.n_vertices))
-        out.arrays["transfer"] = np.asarray(gather @ previous, dtype=np.float64)
-        return out
-    free = free_rays(caster, pts, nrm, dirs, ray_offset(mesh.positions)).astype(np.float64)
-    vis, vis_err = _estimate(free, basis, r)
-    ao, ao_err = _estimate(free * cosine / np.pi, np.ones((r, 1)), r)
-    out.arrays.update(visibility=vis, visibility_error=vis_err, ao=ao[:, 0], ao_error=ao_err[:, 0])
-    if s.kind == "diffuse_transfer":
-        t, t_err = _estimate(free * cosine / np.pi, basis, r)
-        out.arrays.update(transfer=t, transfer_error=t_err)
-    elif s.kind == "shadow_matrix":
-        n = basis.shape[1]
-        pair = (basis[:, :, None] * basis[:, None, :]).reshape(r, n * n)
-        m, m_err = _estimate(free, pair, r)
-        out.arrays.update(shadow_matrix=m.reshape(b, n, n), shadow_matrix_error=m_err.reshape(b, n, n))
+    origins = np.repeat(pts + ray_offset(mesh.positions) * nrm, r, axis=0)
+    hits = caster.intersect(origins, np.tile(dirs, (b, 1)))
+    prim = hits.prim.reshape(b, r)
+    fn = np.cross(mesh.positions[mesh.faces[:, 1]] - mesh.positions[mesh.faces[:, 0]],
+                  mesh.positions[mesh.faces[:, 2]] - mesh.positions[mesh.faces[:, 0]])
+    hit = prim >= 0
+    front = np.zeros_like(hit)
+    front[hit] = np.einsum("ij,ij->i", fn[prim[hit]], np.broadcast_to(dirs, (b, r, 3))[hit]) < 0.0
+    # T^b = rho (4 pi / R) sum_s front_s cos_s / pi sum_c bary_c T^{b-1}(corner c): a sparse (B x V) gather
+    w = (s.albedo * 4.0 * np.pi / r / np.pi) * np.where(front, cosine, 0.0)
+    rows, cols = np.nonzero(front)
+    tri = mesh.faces[prim[rows, cols]]
+    u, v = hits.u.reshape(b, r)[rows, cols], hits.v.reshape(b, r)[rows, cols]
+    bary = np.stack([1.0 - u - v, u, v], axis=1) * w[rows, cols][:, None]
+    gather = scipy.sparse.csr_matrix((bary.ravel(), (np.repeat(rows, 3), tri.ravel())),
+                                     shape=(b, mesh.n_vertices))
+    out.arrays["transfer"] = np.asarray(gather @ previous, dtype=np.float64)
     return out
 
 

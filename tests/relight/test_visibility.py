@@ -150,7 +150,7 @@ def test_sphere_occluder_hides_a_cap_of_half_angle_asin_a_over_d() -> None:
     blk = transfer_block(both, int(facing.min()), int(facing.max()) + 1, TransferSettings(order=ORDER, rays=rays))
     vis = blk.arrays["visibility"][facing - facing.min()]
     hemi, _ = _estimate(free_rec.astype(np.float64), sh_basis(dirs, ORDER), rays)
-    assert np.abs(vis - (hemi - cap)).max() < 1e-12
+    assert np.abs(vis - (hemi - cap)).max() < 1e-5  # float32 sums of 4096 terms of size <= 4 pi / 4096
 
 
 def test_monte_carlo_error_falls_as_one_over_sqrt_rays() -> None:
@@ -197,8 +197,14 @@ def test_shadow_matrix_is_the_gaunt_contraction_of_the_visibility() -> None:
     m = transfer_block(mesh, lo, hi, s).arrays["shadow_matrix"]
     assert np.abs(m - np.swapaxes(m, 1, 2)).max() < 1e-13  # a shadow-only transfer matrix is symmetric
     # the same rays projected to order 2F: the contraction reproduces M up to rounding (Yr_i Yr_j has degree 2F)
-    v2 = transfer_block(mesh, lo, hi, TransferSettings(order=2 * ORDER, rays=1024)).arrays["visibility"]
+    dirs = directions(s.rays, s.sampling, s.seed)
+    free = free_rays(RayCaster(mesh.positions, mesh.faces), mesh.positions[lo:hi], mesh.normals[lo:hi], dirs,
+                     ray_offset(mesh.positions))
+    v2, _ = _estimate(free.astype(np.float64), sh_basis(dirs, 2 * ORDER), s.rays, binary=True)
     assert np.abs(product_matrix(v2, 2 * ORDER, ORDER) - m).max() < 1e-12
+    # transfer_block's float32 visibility (order F) is the same projection to float32 accuracy
+    vis32 = transfer_block(mesh, lo, hi, TransferSettings(order=ORDER, rays=1024)).arrays["visibility"]
+    assert np.abs(vis32 - v2[:, : (ORDER + 1) ** 2]).max() < 1e-5
     # visibility stored to order F only: the bands F < l <= 2F are missing, bounded by contraction_bound
     vf = v2[:, : (ORDER + 1) ** 2]
     diff = np.abs(product_matrix(vf, ORDER, ORDER) - m).max(axis=(1, 2))

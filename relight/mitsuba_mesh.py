@@ -1,0 +1,104 @@
+"""Mitsuba 3 as the independent renderer of a Lambertian mesh under an environment map (issue 13, item 4).
+
+Extends ``relight.mitsuba_twin`` (the analytic sphere) to meshes with its conventions: the ``envmap`` bitmap of
+:func:`relight.mitsuba_twin.mitsuba_bitmap` (relight's lat-long map shown exactly), the orthographic camera at
+``look_at(3 V, 0, up)`` framing the unit ball (``relight.mesh_render``'s camera), the ``hdrfilm`` box filter, the
+``moment`` integrator for each pixel's Monte Carlo variance. The mesh (scaled into the unit ball) is written as an
+``obj`` with relight's own vertex normals as ``vn`` (``f v//vn``), so both renderers shade with the same
+interpolated normals; the BSDF is ``diffuse`` with ``reflectance = albedo`` (``f_r = albedo / pi``).
+
+``path`` with ``max_depth = 2`` is direct light with exact self-shadowing (one bounce from the surface to the
+environment); ``max_depth = 2 + B`` adds B interreflection bounces.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from relight.conventions import luminance
+from relight.errors import InputError, RelightError
+from relight.mesh.model import TriangleMesh
+from relight.mitsuba_twin import (
+    block_mean,
+    camera_up,
+    check_bitmap_shape,
+    mitsuba_bitmap,
+    mitsuba_module,
+    texels_per_pixel,
+)
+
+FloatArray = NDArray[np.float64]
+
+
+def write_obj(mesh: TriangleMesh, path: str | Path) -> None:
+    """``v``, ``vn`` (relight's normals) and ``f a//a b//b c//c`` lines, 1-based, in canonical order."""
+    with open(path, "w") as fh:
+        fh.write("".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in mesh.positions))
+        fh.write("".join(f"vn {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in mesh.normals))
+        fh.write("".join(f"f {a}//{a} {b}//{b} {c}//{c}\n" for a, b, c in mesh.faces + 1))
+
+
+@dataclass(frozen=True)
+class MeshRender:
+    """Mitsuba's image: RGB, luminance and the Monte Carlo variance of each pixel's luminance."""
+
+    rgb: FloatArray
+    luminance: FloatArray
+    variance: FloatArray
+    spp: int
+    seconds: float
+    max_depth: int
+
+    def blocks(self, block: int) -> tuple[FloatArray, FloatArray]:
+        """Block means of luminance and their standard deviations (independent pixels: variance / block^4)."""
+        return block_mean(self.luminance, block), np.sqrt(block_mean(self.variance, block) / block**2)
+
+
+def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, view: NDArray[np.floating],
+                        size: int, spp: int, albedo: float = 1.0, max_depth: int = 2, seed: int = 0,
+                        texels: int = 8) -> MeshRender:
+    """Render the (unit-ball) mesh under the lat-long map (negatives clamped) seen along V (module docstring)."""
+    mi = mitsuba_module()
+    p = np.maximum(np.asarray(pixels, dtype=np.float64), 0.0)
+    reason = check_bitmap_shape(p.shape)
+    if reason is not None:
+        raise InputError(reason)
+    if max_depth < 2:
+        raise InputError(f"max_depth must be >= 2 (direct light), got {max_depth}")
+    v = np.asarray(view, dtype=np.float64) / np.linalg.norm(view)
+    bitmap = mitsuba_bitmap(p, texels_per_pixel(p.shape[1], texels))
+    with tempfile.TemporaryDirectory() as tmp:
+        obj = Path(tmp) / "mesh.obj"
+        write_obj(mesh, obj)
+        scene: dict[str, Any] = {
+            "type": "scene",
+            "integrator": {"type": "moment",
+                           "nested": {"type": "path", "max_depth": max_depth, "hide_emitters": True}},
+            "sensor": {
+                "type": "orthographic",
+                "to_world": mi.ScalarTransform4f().look_at(origin=(3.0 * v).tolist(), target=[0, 0, 0],
+                                                           up=camera_up(v).tolist()),
+                "film": {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"},
+                         "pixel_format": "rgb"},
+                "sampler": {"type": "independent", "sample_count": spp},
+            },
+            "emitter": {"type": "envmap", "bitmap": mi.Bitmap(bitmap)},
+            "mesh": {"type": "obj", "filename": str(obj), "face_normals": False,
+                     "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [albedo] * 3}}},
+        }
+        t0 = time.perf_counter()
+        img = np.array(mi.render(mi.load_dict(scene), spp=spp, seed=mi.UInt32(seed)), dtype=np.float64)
+        seconds = time.perf_counter() - t0
+    if img.shape != (size, size, 9):
+        raise RelightError(f"unexpected Mitsuba film layout {img.shape}")
+    y, m2 = img[..., 4], img[..., 7]
+    var = np.maximum(m2 - y * y, 0.0) / spp
+    return MeshRender(rgb=img[..., :3], luminance=luminance(img[..., :3]), variance=var, spp=spp,
+                      seconds=seconds, max_depth=max_depth)
