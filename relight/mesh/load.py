@@ -15,6 +15,7 @@ from typing import Final
 
 import numpy as np
 
+from relight import resources
 from relight.errors import InputError
 from relight.mesh import defects as defects_mod
 from relight.mesh import tangents as tangents_mod
@@ -22,8 +23,8 @@ from relight.mesh.gltf import read_gltf_bytes
 from relight.mesh.model import Caps, RawMesh, TriangleMesh, Weighting, check_positions, vertex_normals, weld
 from relight.mesh.obj import read_obj_bytes
 
-#: ``data/meshes`` of this checkout.
-MESH_DIR: Final = Path(__file__).resolve().parents[2] / "data" / "meshes"
+#: ``data/meshes``, package data of ``relight.data`` (:mod:`relight.resources`).
+MESH_DIR: Final = resources.mesh_dir()
 #: Sample meshes by name: (file, midpoint subdivisions).
 SAMPLES: Final = {"bunny": ("bunny.obj", 0), "teapot": ("teapot.obj", 0), "bunny-100k": ("bunny.obj", 3)}
 

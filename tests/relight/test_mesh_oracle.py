@@ -20,10 +20,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from relight import resources
 from relight.conventions import luminance
 from relight.envmap import read_envmap, resample_latlong
 from relight.mesh import sample_mesh
-from relight.mesh.load import MESH_DIR
 from relight.mesh_render import (
     brute_force_radiance,
     interpolate,
@@ -46,7 +46,7 @@ VIEW = np.array([0.3, 0.4, 1.0])
                                               ("teapot", "courtyard")])
 def test_shadowed_diffuse_mesh_matches_mitsuba(name: str, envmap: str) -> None:
     mesh = sample_mesh(name).normalised()
-    env = read_envmap(MESH_DIR.parent / "envmaps" / f"{envmap}.exr")
+    env = read_envmap(resources.package_dir(resources.DATA, "envmaps", f"{envmap}.exr"))
     px = np.asarray(resample_latlong(np.asarray(env.pixels, dtype=np.float64), 32), dtype=np.float64)
     mitsuba = render_mesh_mitsuba(mesh, px, view=VIEW, size=SIZE, spp=SPP)
     caster = RayCaster(mesh.positions, mesh.faces)
