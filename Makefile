@@ -34,10 +34,12 @@ run: $(STAMP) web/node_modules/.installed
 
 # mypy and import-linter read the installed layout (relight.server from server/, ...): tools/pkgview.py links it
 # under build/pkgview. lint-imports checks the layering contracts of pyproject.toml [tool.importlinter].
-lint: $(STAMP)
+# eslint (web/eslint.config.js) lints the viewer and its unit tests.
+lint: $(STAMP) web/node_modules/.installed
 	$(BIN)/ruff check relight server worker client contract tests bench tools
 	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null
 	cd build/pkgview && PYTHONPATH=. ../../$(BIN)/lint-imports --no-cache ../../pyproject.toml
+	cd web && node_modules/.bin/eslint src test eslint.config.js
 
 typecheck: $(STAMP)
 	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null

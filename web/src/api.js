@@ -39,7 +39,7 @@ export class Api {
     }
     const resp = await fetch(this.base + path, init);
     if (!resp.ok) {
-      let problem = null;
+      let problem;
       try {
         problem = await resp.json();
       } catch {

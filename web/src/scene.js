@@ -11,7 +11,7 @@ export function parseScene(text, envmapId) {
   try {
     scene = JSON.parse(text);
   } catch (err) {
-    throw new Error(`the scene is not JSON: ${err.message}`);
+    throw new Error(`the scene is not JSON: ${err.message}`, { cause: err });
   }
   if (!scene || typeof scene !== 'object' || !Array.isArray(scene.objects)) {
     throw new Error('the scene must be an object with an "objects" list (SceneCreate)');
