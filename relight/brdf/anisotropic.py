@@ -57,6 +57,7 @@ class AshikhminShirley(FrameBRDF):
     1], grey or RGB."""
 
     kind: ClassVar[str] = "ashikhmin-shirley"
+    mirror_symmetric = True
 
     def __init__(self, nu: float, nv: float, rs: float | Sequence[float] = 0.05, rd: float | Sequence[float] = 0.0):
         name = self.kind
@@ -69,29 +70,40 @@ class AshikhminShirley(FrameBRDF):
         self.lobe_width = float(min(1.0 / np.sqrt(max(self.nu, self.nv)), 0.3))
 
     def specular(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
-        """The specular term without Fresnel, shape (...,)."""
-        h = _unit(wi + wo)
-        nh = np.clip(h[..., 2], 0.0, 1.0)
-        sin2 = np.maximum(1.0 - nh * nh, 0.0)
-        hx2, hy2 = h[..., 0] ** 2, h[..., 1] ** 2
-        # (nu hx^2 + nv hy^2) / (1 - nh^2); at h = n the limit of (n.h)^e is 1 for any e
-        expo = np.where(sin2 > 1e-300, (self.nu * hx2 + self.nv * hy2) / np.where(sin2 > 1e-300, sin2, 1.0), 0.0)
-        hk = np.einsum("...k,...k->...", h, wi)
-        den = np.maximum(hk, 1e-300) * np.maximum(np.maximum(wi[..., 2], wo[..., 2]), 1e-300)
+        """The specular term without Fresnel, shape broadcast(wi, wo)[:-1] (component arithmetic: a view broadcast
+        against many lights costs one operation per light)."""
+        hx, hy, hz = wi[..., 0] + wo[..., 0], wi[..., 1] + wo[..., 1], wi[..., 2] + wo[..., 2]
+        hx2, hy2 = hx * hx, hy * hy
+        t2 = hx2 + hy2
+        inv = 1.0 / np.sqrt(np.maximum(t2 + hz * hz, 1e-300))
+        nh = np.clip(hz * inv, 1e-300, 1.0)
+        # (nu h_t^2 + nv h_b^2) / (1 - (n.h)^2) is the same ratio for the unnormalised h; (n.h)^e -> 1 at h = n
+        expo = np.where(t2 > 0.0, (self.nu * hx2 + self.nv * hy2) / np.where(t2 > 0.0, t2, 1.0), 0.0)
+        hk = np.maximum((hx * wi[..., 0] + hy * wi[..., 1] + hz * wi[..., 2]) * inv, 1e-300)
+        den = hk * np.maximum(np.maximum(wi[..., 2], wo[..., 2]), 1e-300)
         with np.errstate(under="ignore"):
-            val = np.sqrt((self.nu + 1.0) * (self.nv + 1.0)) / (8.0 * np.pi) * nh**expo / den
-        return np.where(upper(wi, wo) & (nh > 0.0), val, 0.0)
+            val = (np.sqrt((self.nu + 1.0) * (self.nv + 1.0)) / (8.0 * np.pi)) * np.exp(expo * np.log(nh)) / den
+        return np.where((wi[..., 2] > 0.0) & (wo[..., 2] > 0.0) & (hz > 0.0), val, 0.0)
+
+    def _hk(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
+        hx, hy, hz = wi[..., 0] + wo[..., 0], wi[..., 1] + wo[..., 1], wi[..., 2] + wo[..., 2]
+        inv = 1.0 / np.sqrt(np.maximum(hx * hx + hy * hy + hz * hz, 1e-300))
+        return np.asarray(np.clip((hx * wi[..., 0] + hy * wi[..., 1] + hz * wi[..., 2]) * inv, 0.0, 1.0))
 
     def f_local(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
-        wi, wo = _pair(wi, wo)
-        h = _unit(wi + wo)
-        hk = np.clip(np.einsum("...k,...k->...", h, wi), 0.0, 1.0)
-        fres = self.rs + (1.0 - self.rs) * ((1.0 - hk) ** 5)[..., None]
-        ci, co = np.clip(wi[..., 2], 0.0, 1.0), np.clip(wo[..., 2], 0.0, 1.0)
-        diff = (28.0 / (23.0 * np.pi)) * (1.0 - (1.0 - ci / 2.0) ** 5) * (1.0 - (1.0 - co / 2.0) ** 5)
-        rd = self.rd * (1.0 - self.rs)
-        ok = upper(wi, wo)[..., None]
-        return np.where(ok, self.specular(wi, wo)[..., None] * fres + diff[..., None] * rd, 0.0)
+        wi, wo = np.asarray(wi, np.float64), np.asarray(wo, np.float64)
+        spec = self.specular(wi, wo)[..., None]
+        if np.all(self.rs == 1.0):
+            fres: FloatArray | float = 1.0
+        else:
+            fres = self.rs + (1.0 - self.rs) * ((1.0 - self._hk(wi, wo)) ** 5)[..., None]
+        out = spec * fres
+        if np.any(self.rd > 0.0):
+            ci, co = np.clip(wi[..., 2], 0.0, 1.0), np.clip(wo[..., 2], 0.0, 1.0)
+            diff = (28.0 / (23.0 * np.pi)) * (1.0 - (1.0 - ci / 2.0) ** 5) * (1.0 - (1.0 - co / 2.0) ** 5)
+            ok = (wi[..., 2] > 0.0) & (wo[..., 2] > 0.0)
+            out = out + np.where(ok, diff, 0.0)[..., None] * (self.rd * (1.0 - self.rs))
+        return np.asarray(np.broadcast_to(out, out.shape[:-1] + (self.channels,)), dtype=np.float64)
 
     def params(self) -> dict[str, Any]:
         return {"nu": self.nu, "nv": self.nv, "rd": self._rd_given, "rs": self._rs_given}
@@ -102,6 +114,7 @@ class WardAnisotropic(FrameBRDF):
     along t and b; ``rho_d``, ``rho_s`` in [0, 1] (grey or RGB)."""
 
     kind: ClassVar[str] = "ward"
+    mirror_symmetric = True
 
     def __init__(self, alpha_x: float, alpha_y: float, rho_d: float | Sequence[float],
                  rho_s: float | Sequence[float]) -> None:
@@ -111,7 +124,7 @@ class WardAnisotropic(FrameBRDF):
         self.rho_s, self._rho_s_given = check_color("ward", "rho_s", rho_s, lo=0.0, hi=1.0)
         self.channels = max(self.rho_d.size, self.rho_s.size)
         self.isotropic = self.alpha_x == self.alpha_y
-        self.lobe_width = float(min(max(self.alpha_x, self.alpha_y, 0.01), 0.3))
+        self.lobe_width = float(min(max(min(self.alpha_x, self.alpha_y), 0.01), 0.3))
 
     def f_local(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
         wi, wo = _pair(wi, wo)
@@ -131,22 +144,25 @@ class WardAnisotropic(FrameBRDF):
 
 
 def D_anisotropic(h: FloatArray, alpha_u: float, alpha_v: float, distribution: str) -> FloatArray:
-    """Anisotropic Beckmann or GGX normal distribution at local half vectors h (..., 3); 0 for h_z <= 0."""
-    c = h[..., 2]
-    ok = c > 0.0
-    c2 = np.where(ok, c * c, 1.0)
-    sx, sy = (h[..., 0] / alpha_u) ** 2, (h[..., 1] / alpha_v) ** 2
+    """Anisotropic Beckmann or GGX normal distribution at half vectors h (..., 3), unit or not (only the direction
+    counts); 0 for h_z <= 0."""
+    hx, hy, hz = h[..., 0], h[..., 1], h[..., 2]
+    ok = hz > 0.0
+    hz2 = np.where(ok, hz * hz, 1.0)
+    s = (hx / alpha_u) ** 2 + (hy / alpha_v) ** 2  # stretched slope times |h|^2
+    l2 = hx * hx + hy * hy + hz2
+    c4 = (hz2 / l2) ** 2
     if distribution == "beckmann":
         with np.errstate(under="ignore"):
-            val = np.exp(-(sx + sy) / c2) / (np.pi * alpha_u * alpha_v * c2 * c2)
+            val = np.exp(-s / hz2) / (np.pi * alpha_u * alpha_v * c4)
     else:
-        val = 1.0 / (np.pi * alpha_u * alpha_v * (sx + sy + c2) ** 2)
+        val = 1.0 / (np.pi * alpha_u * alpha_v * ((s + hz2) / l2) ** 2)
     return np.where(ok, val, 0.0)
 
 
 def G1_anisotropic(v: FloatArray, h: FloatArray, alpha_u: float, alpha_v: float, distribution: str) -> FloatArray:
     """Smith G1 with the projected roughness (module docstring); Mitsuba's conventions at normal incidence (1) and
-    for back-facing microfacets (0)."""
+    for back-facing microfacets (0). ``h`` need not be unit (only the sign of v.h is used)."""
     vz = v[..., 2]
     xy = (alpha_u * v[..., 0]) ** 2 + (alpha_v * v[..., 1]) ** 2
     vz2 = np.where(vz != 0.0, vz * vz, 1.0)
@@ -159,7 +175,8 @@ def G1_anisotropic(v: FloatArray, h: FloatArray, alpha_u: float, alpha_v: float,
     else:
         val = 2.0 / (1.0 + np.sqrt(1.0 + t2))
     val = np.where(xy == 0.0, 1.0, val)
-    return np.where((np.einsum("...k,...k->...", v, h) * vz > 0.0) & (vz > 0.0), val, 0.0)
+    vh = v[..., 0] * h[..., 0] + v[..., 1] * h[..., 1] + v[..., 2] * h[..., 2]
+    return np.where((vh * vz > 0.0) & (vz > 0.0), val, 0.0)
 
 
 class AnisotropicTorranceSparrow(FrameBRDF):
@@ -170,6 +187,7 @@ class AnisotropicTorranceSparrow(FrameBRDF):
     """
 
     kind: ClassVar[str] = "torrance-sparrow"
+    mirror_symmetric = True
 
     def __init__(self, alpha_u: float, alpha_v: float, distribution: str = "beckmann", fresnel: str = "none",
                  f0: float | Sequence[float] | None = None, eta: float | Sequence[float] | None = None,
@@ -181,18 +199,20 @@ class AnisotropicTorranceSparrow(FrameBRDF):
         self.fresnel = self._fresnel.fresnel
         self.channels = self._fresnel.channels
         self.isotropic = self.alpha_u == self.alpha_v
-        self.lobe_width = float(min(max(self.alpha_u, self.alpha_v, 0.01), 0.3))
+        self.lobe_width = float(min(max(min(self.alpha_u, self.alpha_v), 0.01), 0.3))
 
     def f_local(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
-        wi, wo = _pair(wi, wo)
+        wi, wo = np.asarray(wi, np.float64), np.asarray(wo, np.float64)
         ok = upper(wi, wo)
-        h = _unit(wi + wo)
+        h = wi + wo  # unnormalised: D and G1 use only its direction
         d = D_anisotropic(h, self.alpha_u, self.alpha_v, self.distribution)
         g = G1_anisotropic(wi, h, self.alpha_u, self.alpha_v, self.distribution)
         g = g * G1_anisotropic(wo, h, self.alpha_u, self.alpha_v, self.distribution)
         den = 4.0 * np.where(ok, wi[..., 2] * wo[..., 2], 1.0)
-        spec = np.where(ok, d * g / den, 0.0)
-        return np.asarray(spec[..., None] * self._fresnel.F(np.einsum("...k,...k->...", wi, h)), dtype=np.float64)
+        spec = np.where(ok, d * g / den, 0.0)[..., None]
+        if self.fresnel == "none":
+            return np.asarray(spec, dtype=np.float64)
+        return np.asarray(spec * self._fresnel.F(np.einsum("...k,...k->...", wi, _unit(h))), dtype=np.float64)
 
     def params(self) -> dict[str, Any]:
         out: dict[str, Any] = self._fresnel.params()

@@ -10,7 +10,10 @@ frame that maps the normal to +z and two tangents to x and y (§4). Every BRDF h
   are ``(t, b, n)`` (``relight.tangent_frames``): the local directions are ``frame @ w``.
 * ``isotropic`` — True when f depends on the frame only through n (the SH table is then 1-D in theta_v, rotated
   about z: ``relight.sh_table``); ``lobe_width`` — a rough angular width (radians) of the lobe about the mirror
-  direction, used only to place quadrature panels (``relight.sh_table.lobe_quadrature``).
+  direction, and ``lobe_center`` ("R" or "N"), used only to place quadrature nodes
+  (``relight.sh_table.lobe_quadrature``); ``mirror_symmetric`` —
+  True when ``f(S wi, S wo) = f(wi, wo)`` for the mirrors S = diag(-1, 1, 1) and diag(1, -1, 1) (every model here
+  but Kajiya–Kay), which lets a table compute one quadrant of views (``relight.sh_table.project_views``).
 
 :class:`LobeAdapter` puts every existing relight lobe (``relight.brdf.models``, ``relight.brdf.measured``) behind
 this interface with relight's own product function (the integrand of ``relight.reference_view``): an
@@ -52,7 +55,10 @@ class FrameBRDF(ABC):
     kind: ClassVar[str] = ""
     channels: int = 1
     isotropic: bool = False
+    mirror_symmetric: bool = False
     lobe_width: float = DEFAULT_LOBE_WIDTH
+    #: Where the quadrature nodes concentrate: "R" (the mirror direction) or "N" (the normal; diffuse lobes).
+    lobe_center: str = "R"
 
     @abstractmethod
     def f_local(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
@@ -93,6 +99,8 @@ class LobeAdapter(FrameBRDF):
         self.lobe = lobe
         self.channels = int(lobe.channels)
         self.isotropic = lobe.center != "T"
+        self.mirror_symmetric = self.isotropic
+        self.lobe_center = "N" if lobe.center == "N" else "R"
         self.lobe_width = _width_hint(lobe)
 
     def _fcos_raw(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
@@ -178,6 +186,7 @@ class FrameSum(FrameBRDF):
         self.terms = list(terms)
         self.channels = max(t.channels for t in self.terms)
         self.isotropic = all(t.isotropic for t in self.terms)
+        self.mirror_symmetric = all(t.mirror_symmetric for t in self.terms)
         self.lobe_width = min(t.lobe_width for t in self.terms)
 
     def f_local(self, wi: FloatArray, wo: FloatArray) -> FloatArray:
