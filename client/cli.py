@@ -102,10 +102,10 @@ def cmd_jobs(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table("id", "state", "stage", "progress", "brdf", "created")
+    table = Table("id", "kind", "state", "stage", "progress", "brdf", "created")
     for j in jobs:
-        table.add_row(j.id[:16], j.state.value, j.stage or "", f"{100 * j.progress:.0f}%",
-                      str(j.brdf_spec.get("kind", "")), j.created_at.strftime("%Y-%m-%d %H:%M:%S"))
+        table.add_row(j.id[:16], j.kind, j.state.value, j.stage or "", f"{100 * j.progress:.0f}%",
+                      str((j.brdf_spec or {}).get("kind", "")), j.created_at.strftime("%Y-%m-%d %H:%M:%S"))
     Console().print(table)
     return 0
 

@@ -7,7 +7,6 @@ Both build their requests from the same :class:`_Call` descriptions and parse an
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import AsyncIterator, Callable, Iterator
@@ -16,6 +15,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 import httpx
+from httpx_sse import aconnect_sse, connect_sse
 from pydantic import BaseModel
 
 from relight.client.errors import JobFailed, TransportError, from_httpx, from_response
@@ -164,32 +164,6 @@ class _Calls:
         return _Call("GET", f"/scenes/{scene_id}", _model(ScenePublic))
 
 
-class _SSE:
-    """Incremental parser of ``text/event-stream`` lines into (event, data) pairs."""
-
-    def __init__(self) -> None:
-        self.event = "message"
-        self.data: list[str] = []
-
-    def feed(self, line: str) -> tuple[str, str] | None:
-        if line == "":
-            if not self.data:
-                self.event = "message"
-                return None
-            out = (self.event, "\n".join(self.data))
-            self.event, self.data = "message", []
-            return out
-        if line.startswith(":"):
-            return None
-        name, _, value = line.partition(":")
-        value = value[1:] if value.startswith(" ") else value
-        if name == "event":
-            self.event = value
-        elif name == "data":
-            self.data.append(value)
-        return None
-
-
 def _tradeoff_body(envmap: str, brdf: Spec, rows: int | None, size: int | None, epsilons: list[float] | None,
                    truncations: list[float] | None, view: tuple[float, float, float] | None) -> dict[str, Any]:
     ref: Any = brdf.model_dump(mode="json", exclude_none=True) if isinstance(brdf, BaseModel) else brdf
@@ -207,8 +181,11 @@ def _scene_body(scene: dict[str, Any] | BaseModel) -> dict[str, Any]:
     return SceneCreate.model_validate(scene).model_dump(mode="json", exclude_none=True)
 
 
-def _check_analysis(pub: TradeoffPublic) -> TradeoffPublic:
-    """A finished tradeoff: itself, or :class:`JobFailed` when it failed or was cancelled."""
+A = TypeVar("A", TradeoffPublic, ScenePublic)
+
+
+def _check_analysis(pub: A) -> A:
+    """A finished sweep or scene: itself, or :class:`JobFailed` when it failed or was cancelled."""
     if pub.state in (JobState.failed, JobState.cancelled):
         raise JobFailed(pub)
     return pub
@@ -301,30 +278,27 @@ class RelightClient:
         return self._do(_Calls.cancel_job(job_id))
 
     def events(self, job_id: str, *, timeout: float | None = None) -> Iterator[JobPublic]:
-        """Job updates from ``GET /jobs/{id}/events`` until the job ends (the last one is final)."""
-        parser = _SSE()
+        """Job updates from ``GET /jobs/{id}/events`` (any kind of job) until the job ends (the last one is final)."""
         try:
-            with self._http.stream("GET", f"/jobs/{job_id}/events",
-                                   timeout=httpx.Timeout(timeout, connect=10.0)) as resp:
-                if resp.status_code >= 400:
-                    resp.read()
-                    raise from_response(resp)
-                for line in resp.iter_lines():
-                    ev = parser.feed(line)
-                    if ev is None:
+            with connect_sse(self._http, "GET", f"/jobs/{job_id}/events",
+                             timeout=httpx.Timeout(timeout, connect=10.0)) as source:
+                if source.response.status_code >= 400:
+                    source.response.read()
+                    raise from_response(source.response)
+                for sse in source.iter_sse():
+                    if sse.event not in ("job", "end"):
                         continue
-                    job = JobPublic.model_validate(json.loads(ev[1]))
-                    yield job
-                    if ev[0] == "end":
+                    yield JobPublic.model_validate_json(sse.data)
+                    if sse.event == "end":
                         return
-        except httpx.HTTPError as exc:
+        except httpx.HTTPError as exc:  # SSEError (not an event stream) is one
             raise from_httpx(exc) from exc
 
     def wait(self, job_id: str, *, timeout: float | None = None,
              on_update: Callable[[JobPublic], None] | None = None, poll_interval: float = 0.5) -> JobPublic:
         """Block until the job ends; raise :class:`JobFailed` if it failed or was cancelled.
 
-        Follows the event stream, and falls back to polling if the stream breaks.
+        Follows the event stream (``httpx-sse``), and falls back to polling if the stream breaks.
         """
         deadline = None if timeout is None else time.monotonic() + timeout
         last: JobPublic | None = None
@@ -368,15 +342,14 @@ class RelightClient:
 
     def wait_tradeoff(self, tradeoff_id: str, *, timeout: float | None = None,
                       poll_interval: float = 0.5) -> TradeoffPublic:
-        """Poll until the sweep ends; raise :class:`JobFailed` if it failed or was cancelled."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while True:
-            pub = self.get_tradeoff(tradeoff_id)
-            if pub.state.terminal:
-                return _check_analysis(pub)
-            if deadline is not None and time.monotonic() > deadline:
-                raise TransportError(f"tradeoff {tradeoff_id} still {pub.state} after {timeout} s")
-            time.sleep(poll_interval)
+        """Follow the sweep's job until it ends; raise :class:`JobFailed` if it failed or was cancelled."""
+        self.wait(tradeoff_id, timeout=timeout, poll_interval=poll_interval)
+        return _check_analysis(self.get_tradeoff(tradeoff_id))
+
+    def wait_scene(self, scene_id: str, *, timeout: float | None = None, poll_interval: float = 0.5) -> ScenePublic:
+        """Follow the scene's job until it ends; raise :class:`JobFailed` if it failed or was cancelled."""
+        self.wait(scene_id, timeout=timeout, poll_interval=poll_interval)
+        return _check_analysis(self.get_scene(scene_id))
 
     def create_scene(self, scene: dict[str, Any] | SceneCreate) -> ScenePublic:
         """``POST /scenes``: store the scene and run its plan (validated locally as ``SceneCreate`` first)."""
@@ -467,21 +440,19 @@ class AsyncRelightClient:
         return await self._do(_Calls.cancel_job(job_id))
 
     async def events(self, job_id: str, *, timeout: float | None = None) -> AsyncIterator[JobPublic]:
-        parser = _SSE()
         try:
-            async with self._http.stream("GET", f"/jobs/{job_id}/events",
-                                         timeout=httpx.Timeout(timeout, connect=10.0)) as resp:
-                if resp.status_code >= 400:
-                    await resp.aread()
-                    raise from_response(resp)
-                async for line in resp.aiter_lines():
-                    ev = parser.feed(line)
-                    if ev is None:
+            async with aconnect_sse(self._http, "GET", f"/jobs/{job_id}/events",
+                                    timeout=httpx.Timeout(timeout, connect=10.0)) as source:
+                if source.response.status_code >= 400:
+                    await source.response.aread()
+                    raise from_response(source.response)
+                async for sse in source.aiter_sse():
+                    if sse.event not in ("job", "end"):
                         continue
-                    yield JobPublic.model_validate(json.loads(ev[1]))
-                    if ev[0] == "end":
+                    yield JobPublic.model_validate_json(sse.data)
+                    if sse.event == "end":
                         return
-        except httpx.HTTPError as exc:
+        except httpx.HTTPError as exc:  # SSEError (not an event stream) is one
             raise from_httpx(exc) from exc
 
     async def wait(self, job_id: str, *, timeout: float | None = None,
@@ -527,16 +498,13 @@ class AsyncRelightClient:
 
     async def wait_tradeoff(self, tradeoff_id: str, *, timeout: float | None = None,
                             poll_interval: float = 0.5) -> TradeoffPublic:
-        import anyio
+        await self.wait(tradeoff_id, timeout=timeout, poll_interval=poll_interval)
+        return _check_analysis(await self.get_tradeoff(tradeoff_id))
 
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while True:
-            pub = await self.get_tradeoff(tradeoff_id)
-            if pub.state.terminal:
-                return _check_analysis(pub)
-            if deadline is not None and time.monotonic() > deadline:
-                raise TransportError(f"tradeoff {tradeoff_id} still {pub.state} after {timeout} s")
-            await anyio.sleep(poll_interval)
+    async def wait_scene(self, scene_id: str, *, timeout: float | None = None,
+                         poll_interval: float = 0.5) -> ScenePublic:
+        await self.wait(scene_id, timeout=timeout, poll_interval=poll_interval)
+        return _check_analysis(await self.get_scene(scene_id))
 
     async def create_scene(self, scene: dict[str, Any] | SceneCreate) -> ScenePublic:
         return await self._do(_Calls.create_scene(_scene_body(scene)))

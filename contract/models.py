@@ -196,14 +196,19 @@ class Measurement(Public):
 
 
 class JobPublic(Public):
+    """A job of any kind; ``envmap`` / ``brdf`` / ``brdf_spec`` / ``params`` describe an ``shrm`` job (the map also
+    a sweep's and a scene's), ``request`` is the kind's canonical request."""
+
     id: Digest
+    kind: str = Field("shrm", description="shrm, tradeoff, scene, ... (the job kinds of the server)")
     state: JobState
     stage: str | None = None
     progress: float = 0.0
-    envmap: Digest
-    brdf: Digest
-    brdf_spec: dict[str, Any]
-    params: JobParams
+    envmap: Digest | None = None
+    brdf: Digest | None = None
+    brdf_spec: dict[str, Any] | None = None
+    params: JobParams | None = None
+    request: dict[str, Any] | None = Field(None, description="the canonical request the job's id is the hash of")
     predicted: Prediction | None = None
     measured: Measurement | None = None
     failure_reason: str | None = None
@@ -272,6 +277,8 @@ class TradeoffCreate(Strict):
 class TradeoffPublic(Public):
     id: Digest
     state: JobState
+    stage: str | None = None
+    progress: float = 0.0
     failure_reason: str | None = None
     envmap: Digest
     brdf: Digest
@@ -337,6 +344,8 @@ class SceneCreate(Strict):
 class ScenePublic(Public):
     id: Digest
     state: JobState
+    stage: str | None = None
+    progress: float = 0.0
     failure_reason: str | None = None
     scene: dict[str, Any]
     plan: dict[str, Any] | None = Field(None, description="per object: what is simulated, what is skipped and why")

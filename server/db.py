@@ -1,4 +1,5 @@
-"""The service's tables (SQLAlchemy 2): the job table is the source of truth for every job's state.
+"""The service's tables (SQLAlchemy 2): the job table (every kind of job, one row each) is the source of truth for every
+job's state.
 
 SQLite (the default) runs in WAL mode with a busy timeout so readers never block the writer; any other
 SQLAlchemy URL (PostgreSQL in the compose file) works unchanged.
@@ -45,24 +46,26 @@ class Brdf(Base):
 
 
 class Job(Base):
+    """One job of any kind (:mod:`relight.server.services.kinds`): its canonical request, state, progress, result
+    and timings. The source of truth for every job; ``id`` is the SHA-256 of the kind's canonical request."""
+
     __tablename__ = "jobs"
 
     id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    kind: Mapped[str] = mapped_column(String(32), index=True)
     state: Mapped[str] = mapped_column(String(16), index=True)
     stage: Mapped[str | None] = mapped_column(String(64))
     progress: Mapped[float] = mapped_column(Float, default=0.0)
-    envmap_id: Mapped[str] = mapped_column(String(64))
-    brdf_id: Mapped[str] = mapped_column(String(64))
-    brdf_spec: Mapped[dict[str, Any]] = mapped_column(JSON)
-    params: Mapped[dict[str, Any]] = mapped_column(JSON)
+    request: Mapped[dict[str, Any]] = mapped_column(JSON)
     predicted: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     measured: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    result: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    result_sha256: Mapped[str | None] = mapped_column(String(64))
     failure_reason: Mapped[str | None] = mapped_column(Text)
     retryable: Mapped[int] = mapped_column(Integer, default=0)
     runs: Mapped[int] = mapped_column(Integer, default=0)
     submissions: Mapped[int] = mapped_column(Integer, default=0)
     worker: Mapped[str | None] = mapped_column(String(255))
-    result_sha256: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     submitted_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True))
@@ -106,8 +109,12 @@ class Database:
         self.engine = make_engine(url)
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
 
-    def create_all(self) -> None:
-        Base.metadata.create_all(self.engine)
+    def create_all(self) -> int:
+        """Create the tables, moving the rows of an older schema into them first (:func:`migrate`); returns the
+        number of rows migrated."""
+        from relight.server.migrate import migrate
+
+        return migrate(self.engine, Base.metadata)
 
     @contextmanager
     def session(self) -> Iterator[Session]:

@@ -1,4 +1,5 @@
-"""The service objects of one server process, created at start-up and closed at shutdown."""
+"""The service objects of one server process, all created at start-up and closed at shutdown (the app's lifespan,
+:func:`relight.server.main.create_app`). Jobs of every kind left queued or running are resumed at start-up."""
 
 from __future__ import annotations
 
@@ -17,6 +18,10 @@ from relight.server.services.events import EventHub
 from relight.server.services.jobs import JobService
 from relight.server.services.metrics import Metrics
 from relight.server.services.plans import PlanService
+from relight.server.services.render import RenderService
+from relight.server.services.scenes import SceneService
+from relight.server.services.shrms import ShrmService
+from relight.server.services.tradeoffs import TradeoffService
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import TOPIC
 
@@ -37,13 +42,19 @@ class Services:
     brdfs: BrdfService
     plans: PlanService
     jobs: JobService
+    shrms: ShrmService
+    tradeoffs: TradeoffService
+    scenes: SceneService
+    render: RenderService
     background: list[asyncio.Task[None]] = field(default_factory=list)
 
     @classmethod
     async def start(cls, settings: Settings) -> Services:
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         db = Database(settings.resolved_database_url)
-        await in_thread(db.create_all)
+        migrated = await in_thread(db.create_all)
+        if migrated:
+            log.warning("moved %d jobs of the previous schema into the job table", migrated)
         store = BlobStore(settings.resolved_blob_dir, memory_bytes=settings.blob_cache_bytes)
         cluster = Cluster(settings)
         await cluster.start()
@@ -51,11 +62,14 @@ class Services:
         envmaps = EnvmapService(settings, db, store, cluster, metrics)
         brdfs = BrdfService(settings, db, store)
         plans = PlanService(settings, db, store, envmaps, brdfs)
-        jobs = JobService(settings, db, store, cluster, hub, metrics, envmaps, plans)
+        jobs = JobService(settings, db, store, cluster, hub, metrics, envmaps)
+        self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs,
+                   shrms=ShrmService(jobs, plans, envmaps, store, cluster),
+                   tradeoffs=TradeoffService(jobs, envmaps, brdfs), scenes=SceneService(jobs, envmaps, brdfs),
+                   render=RenderService())
         jobs.start()
         cluster.subscribe(TOPIC, jobs.on_event)
-        self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs)
-        await jobs.resume()
+        await jobs.resume()  # every kind: the kinds registered themselves when their services were imported
         if settings.preload_dir is not None:
             self.background.append(asyncio.create_task(self._preload(settings.preload_dir), name="relight-preload"))
         return self
@@ -77,5 +91,6 @@ class Services:
             t.cancel()
         await asyncio.gather(*self.background, return_exceptions=True)
         await self.jobs.close()
+        await self.render.close()
         await self.cluster.close()
         self.db.dispose()

@@ -1,4 +1,5 @@
-"""Analysis tasks the server submits to Dask workers: the accuracy–time sweep, scenes, and the cost-model
+"""Analysis tasks the server submits to Dask workers: the accuracy–time sweep and scenes (task functions of the
+``tradeoff`` and ``scene`` job kinds, run by :func:`relight.worker.progress.run_job`), and the cost-model
 calibration. Plain functions: plain data in, plain data out; they never import FastAPI.
 
 * :func:`compute_tradeoff` — ``relight.tradeoff.sweep`` on an uploaded map (area-averaged to ``rows``).
@@ -18,6 +19,7 @@ import numpy as np
 
 from relight.jsonable import jsonable as _jsonable
 from relight.worker.blobs import BlobStore
+from relight.worker.progress import JobContext
 from relight.worker.specs import from_core, to_core
 
 #: Input rows a tradeoff works on unless the request says otherwise (its reference is O(S_L^2 S_B^2)).
@@ -38,50 +40,58 @@ def _pixels(store: BlobStore, digest: str, max_pixels: int | None, rows: int | N
     return px
 
 
-def compute_tradeoff(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
-    """Sweep both methods for one (map, BRDF) pair (``relight.tradeoff``).
+def compute_tradeoff(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
+    """The ``tradeoff`` job kind: sweep both methods for one (map, BRDF) pair (``relight.tradeoff``).
 
-    ``job``: ``envmap`` (blob digest), ``brdf`` (service spec), ``params`` (``rows``, ``size``, ``epsilons``,
-    ``truncations``, ``view``; None for the defaults) and ``max_pixels``. Returns ``{"points": [...], "meta": {...}}``
-    (the CLI's ``tradeoff.json`` and ``tradeoff_meta.json``).
+    ``job`` (the canonical request): ``envmap`` (blob digest), ``brdf`` (service spec), ``params`` (``rows``,
+    ``size``, ``epsilons``, ``truncations``, ``view``; None for the defaults). Returns
+    ``{"points": [...], "meta": {...}}`` (the CLI's ``tradeoff.json`` and ``tradeoff_meta.json``).
     """
     from relight.brdf.spec import parse_brdf
     from relight.tradeoff import sweep
 
-    store = BlobStore(store_root)
+    store = ctx.store
     params: dict[str, Any] = job.get("params") or {}
     rows = int(params.get("rows") or TRADEOFF_ROWS)
-    px = _pixels(store, job["envmap"], job.get("max_pixels"), rows)
+    ctx.report("loading", 0.5)
+    px = _pixels(store, job["envmap"], ctx.max_pixels, rows)
     brdf = parse_brdf(to_core(job["brdf"], store))
+    ctx.report("sweeping", 0.55)
     kwargs: dict[str, Any] = {}
     if params.get("truncations") is not None:
         kwargs["truncations"] = params["truncations"]
     if params.get("view") is not None:
         kwargs["view"] = params["view"]
     res = sweep(px, brdf, epsilons=params.get("epsilons"), size=params.get("size"), **kwargs)
+    ctx.report("storing", 0.95)
     res.meta["input"]["envmap"] = job["envmap"]
     out: dict[str, Any] = _jsonable({"points": [p.to_json() for p in res.points], "meta": from_core(res.meta, store)})
     return out
 
 
-def run_scene(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
-    """Plan and run a scene (``relight.planning``) on an uploaded map.
+def run_scene(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
+    """The ``scene`` job kind: plan and run a scene (``relight.planning``) on an uploaded map.
 
-    ``job``: ``scene`` (the scene's JSON form with ``environment`` = the map's digest and service BRDF specs) and
-    ``max_pixels``. The files of :func:`relight.planning.run_plan` go into the blob store; the result maps each file
-    name to its digest and media type; every object with an SHRM also gets its viewer texture (:func:`_add_texture`).
+    ``job`` (the canonical request): ``scene`` (the scene's JSON form with ``environment`` = the map's digest and
+    service BRDF specs) and ``preview_size``. The files of :func:`relight.planning.run_plan` go into the blob store;
+    the result maps each file name to its digest and media type; every object with an SHRM also gets its viewer
+    texture (:func:`_add_texture`).
     """
     from relight.planning import plan_scene, run_plan, scene_from_dict
 
-    store = BlobStore(store_root)
+    store = ctx.store
     spec = dict(job["scene"])
     spec["objects"] = [{**o, "material": to_core(o["material"], store)} for o in spec["objects"]]
     scene = scene_from_dict(spec)
-    px = _pixels(store, scene.environment, job.get("max_pixels"), None)
+    ctx.report("loading", 0.5)
+    px = _pixels(store, scene.environment, ctx.max_pixels, None)
+    ctx.report("planning", 0.55)
     plan = plan_scene(scene, px)
     files: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="relight-scene-") as tmp:
+        ctx.report("running", 0.6)
         result = run_plan(plan, tmp, preview_size=int(job.get("preview_size") or 0))
+        ctx.report("storing", 0.95)
         for path in sorted(Path(tmp).iterdir()):
             if path.name in ("plan.json", "result.json"):
                 continue

@@ -9,6 +9,11 @@ Reports are throttled here (at most one per ``min_interval`` seconds unless the 
 cannot flood the scheduler. Every message carries the job id and the submission number, so the server can drop
 reports from a superseded submission.
 
+Every kind of job runs through :func:`run_job`, the one Dask entry point of jobs: it reports ``started``, runs the
+test-only delay (``RELIGHT_TEST_JOB_DELAY_S``), calls the kind's task function with a :class:`JobContext` and the
+job's canonical request, and checks for cancellation once more before handing the result back, so a job cancelled
+while its task ran never returns a result.
+
 Cancellation: when the server cancels a job it releases the Dask future; the worker then marks the running
 task ``cancelled``. :meth:`Reporter.check_cancelled` looks at that state between stages and raises
 :class:`JobCancelled`, so a cancelled job stops at the next stage boundary instead of running to the end.
@@ -16,11 +21,17 @@ task ``cancelled``. :meth:`Reporter.check_cancelled` looks at that state between
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Final
 
+from relight.worker.blobs import BlobStore
+
 TOPIC: Final = "relight-progress"
+#: Seconds between progress reports of the (test-only) artificial delay loop.
+DELAY_STEP_S: Final = 0.05
 
 
 class JobCancelled(Exception):
@@ -93,3 +104,44 @@ class Reporter:
         ts = self._worker.state.tasks.get(self._key)
         if ts is None or ts.state in ("cancelled", "released", "forgotten"):
             raise JobCancelled(f"job {self.job_id} was cancelled")
+
+
+@dataclass(frozen=True)
+class JobContext:
+    """What a job's task function gets besides its request: the job's id, the blob store, the progress reporter
+    and the server's input limit."""
+
+    job_id: str
+    store: BlobStore
+    report: Reporter
+    max_pixels: int | None = None
+
+
+#: A job kind's task function: ``task(ctx, request) -> result`` (plain data in, plain JSON-able data out).
+Task = Callable[[JobContext, dict[str, Any]], dict[str, Any]]
+
+
+def artificial_delay(seconds: float, report: Reporter) -> None:
+    """TEST ONLY (settings.test_job_delay_s): wait in small steps, reporting progress and honouring cancel."""
+    if seconds <= 0:
+        return
+    steps = max(1, math.ceil(seconds / DELAY_STEP_S))
+    for i in range(steps):
+        report("test_delay", 0.5 * i / steps)
+        time.sleep(seconds / steps)
+
+
+def run_job(task: Task, store_root: str, job: dict[str, Any]) -> dict[str, Any]:
+    """Run one job of any kind on a worker (module docstring).
+
+    ``job``: ``job_id``, ``submission``, ``request`` (the kind's canonical request), ``max_pixels`` and
+    ``test_delay_s`` (TEST ONLY). Raises :class:`JobCancelled` when the job was cancelled meanwhile.
+    """
+    report = Reporter(str(job["job_id"]), int(job.get("submission", 0)))
+    report.started()
+    artificial_delay(float(job.get("test_delay_s") or 0.0), report)
+    ctx = JobContext(str(job["job_id"]), BlobStore(store_root), report, job.get("max_pixels"))
+    result = task(ctx, job["request"])
+    report.check_cancelled()
+    report("done", 1.0)
+    return result

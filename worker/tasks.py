@@ -2,7 +2,8 @@
 
 * :func:`analyze_envmap` decodes an uploaded environment map (untrusted bytes: only ever in a worker process,
   size-capped from the header first) and returns its metadata, SH power spectrum and a preview.
-* :func:`compute_shrm` is the single job entry point: it dispatches on the BRDF (radially symmetric lobes go
+* :func:`compute_shrm` is the task of the ``shrm`` job kind (run by :func:`relight.worker.progress.run_job`): it
+  dispatches on the BRDF (radially symmetric lobes go
   through ``relight.prefilter.prefilter_radial``; general BRDFs through the SHRM prefilter) and writes the
   result files (:mod:`relight.worker.results`).
 * :func:`render_reflection` evaluates a result for one view direction (seed 000 eq. 12).
@@ -13,7 +14,6 @@ Inputs and outputs go through the shared blob store (:mod:`relight.worker.blobs`
 from __future__ import annotations
 
 import json
-import math
 import os
 import time
 from typing import Any
@@ -24,14 +24,12 @@ from numpy.typing import NDArray
 from relight.jsonable import jsonable as _jsonable
 from relight.planning.job import uses_reflection_map  # the dispatch rule lives with the planner
 from relight.worker.blobs import BlobStore
-from relight.worker.progress import Reporter
+from relight.worker.progress import JobContext, Reporter
 from relight.worker.results import Layer, existing_result, load_manifest, strip_volatile, write_result
 from relight.worker.specs import from_core, to_core
 
 #: Rows of the PNG preview of an uploaded map.
 PREVIEW_ROWS = 256
-#: Seconds between progress reports of the (test-only) artificial delay loop.
-_DELAY_STEP = 0.05
 
 
 def warmup() -> dict[str, Any]:
@@ -97,16 +95,6 @@ def analyze_envmap(
 # Jobs
 
 
-def _artificial_delay(seconds: float, report: Reporter) -> None:
-    """TEST ONLY (settings.test_job_delay_s): wait in small steps, reporting progress and honouring cancel."""
-    if seconds <= 0:
-        return
-    steps = max(1, math.ceil(seconds / _DELAY_STEP))
-    for i in range(steps):
-        report("test_delay", 0.5 * i / steps)
-        time.sleep(seconds / steps)
-
-
 def _radial(
     pixels: NDArray[np.float32], lobe: Any, params: dict[str, Any], report: Reporter
 ) -> tuple[list[Layer], str, dict[str, Any], dict[str, str]]:
@@ -128,34 +116,30 @@ def _general(
     return shrm_adapter.prefilter(pixels, lobe, params, report)
 
 
-def compute_shrm(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
-    """Run one prefiltering job and store its result (the only job entry point; dispatches on the BRDF).
+def compute_shrm(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
+    """The ``shrm`` job kind: run one prefiltering job and store its result (dispatches on the BRDF).
 
-    ``job`` holds ``job_id``, ``submission``, ``envmap`` (input blob digest), ``brdf`` (canonical spec),
-    ``params`` (``epsilon`` / ``order`` / ``p_order`` / ``size``), ``max_pixels``, ``force`` (ignore an
-    existing result) and ``test_delay_s`` (TEST ONLY: an artificial delay before computing).
-    Returns the manifest digest and manifest, whether an existing result was reused, and timings.
+    ``request`` (canonical, :class:`relight.server.services.shrms.ShrmService`) holds ``envmap`` (input blob
+    digest), ``brdf`` (its id), ``brdf_spec`` (canonical spec), ``params`` (``epsilon`` / ``order`` / ``p_order`` /
+    ``size``) and optionally ``force`` (ignore an existing result). Runs through
+    :func:`relight.worker.progress.run_job`. Returns the manifest digest and manifest, whether an existing result
+    was reused, and timings.
     """
     from relight.brdf.spec import parse_brdf
     from relight.envmap import read_envmap
 
     t0 = time.perf_counter()
-    job_id: str = job["job_id"]
-    report = Reporter(job_id, int(job.get("submission", 0)))
-    report.started()
-    store = BlobStore(store_root)
-    if not job.get("force"):
+    job_id, store, report = ctx.job_id, ctx.store, ctx.report
+    if not request.get("force"):
         found = existing_result(store, job_id)
         if found is not None:
             digest, manifest = found
-            report("done", 1.0)
             return {"manifest_sha256": digest, "manifest": manifest, "reused": True,
                     "task_seconds": time.perf_counter() - t0, "compute_seconds": 0.0}
-    _artificial_delay(float(job.get("test_delay_s") or 0.0), report)
     report("loading", 0.5)
-    env = read_envmap(store.read(job["envmap"]), max_pixels=job.get("max_pixels"))
-    lobe = parse_brdf(to_core(job["brdf"], store))
-    params: dict[str, Any] = job.get("params", {})
+    env = read_envmap(store.read(request["envmap"]), max_pixels=ctx.max_pixels)
+    lobe = parse_brdf(to_core(request["brdf_spec"], store))
+    params: dict[str, Any] = request.get("params", {})
     report("prefiltering", 0.55)
     t_compute = time.perf_counter()
     if uses_reflection_map(lobe, params):
@@ -167,8 +151,8 @@ def compute_shrm(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
     import relight
 
     description = {
-        "envmap": job["envmap"],
-        "brdf": job["brdf"],
+        "envmap": request["envmap"],
+        "brdf": request["brdf_spec"],
         "params": params,
         "algorithm_version": relight.ALGORITHM_VERSION,
         "relight_version": relight.__version__,
@@ -182,7 +166,6 @@ def compute_shrm(store_root: str, job: dict[str, Any]) -> dict[str, Any]:
     digest, manifest = write_result(store, job_id, layers, representation=representation,
                                     description=from_core(_jsonable(strip_volatile(description)), store),
                                     exr_attributes=attributes)
-    report("done", 1.0)
     return {"manifest_sha256": digest, "manifest": manifest, "reused": False,
             "task_seconds": time.perf_counter() - t0, "compute_seconds": compute_seconds,
             "timings": _jsonable(core_report.get("timings"))}

@@ -19,6 +19,10 @@ from relight.server.services.brdfs import BrdfService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.jobs import JobService
 from relight.server.services.plans import PlanService
+from relight.server.services.render import RenderService
+from relight.server.services.scenes import SceneService
+from relight.server.services.shrms import ShrmService
+from relight.server.services.tradeoffs import TradeoffService
 from relight.server.state import Services
 
 
@@ -59,10 +63,30 @@ async def get_jobs(request: Request) -> JobService:
     return _services(request).jobs
 
 
+async def get_shrms(request: Request) -> ShrmService:
+    return _services(request).shrms
+
+
+async def get_tradeoffs(request: Request) -> TradeoffService:
+    return _services(request).tradeoffs
+
+
+async def get_scenes(request: Request) -> SceneService:
+    return _services(request).scenes
+
+
+async def get_render(request: Request) -> RenderService:
+    return _services(request).render
+
+
 EnvmapsDep = Annotated[EnvmapService, Depends(get_envmaps)]
 BrdfsDep = Annotated[BrdfService, Depends(get_brdfs)]
 PlansDep = Annotated[PlanService, Depends(get_plans)]
 JobsDep = Annotated[JobService, Depends(get_jobs)]
+ShrmsDep = Annotated[ShrmService, Depends(get_shrms)]
+TradeoffsDep = Annotated[TradeoffService, Depends(get_tradeoffs)]
+ScenesDep = Annotated[SceneService, Depends(get_scenes)]
+RenderDep = Annotated[RenderService, Depends(get_render)]
 
 
 def presented_key(request: Request) -> str | None:

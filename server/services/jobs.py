@@ -1,17 +1,20 @@
-"""Jobs: identity, the job table (source of truth), submission to Dask, progress, cancellation and recovery.
+"""The one job system: every kind of job (:mod:`relight.server.services.kinds`) is submitted, watched, cancelled
+and resumed here, on one table and under one active-job cap.
 
-* **Identity.** A job's id is the SHA-256 of (input digests, canonical parameters, ``relight.ALGORITHM_VERSION``):
+* **Identity.** A job's id is the SHA-256 of its kind's canonical request (with ``relight.ALGORITHM_VERSION``):
   identical requests share one job and one result.
-* **Submission.** One watcher task per active job submits ``relight.worker.tasks.compute_shrm`` and awaits it; a dict of
-  watchers (mutated only on the event loop) guarantees one submission per job in this process, the primary
-  key guarantees one row. A lost worker is Dask's business: it reschedules the task (``runs`` counts starts).
-* **Progress.** Workers publish Dask events (:mod:`relight.worker.progress`); every event is fanned out to event streams
-  at once, and stored at most every ``progress_interval_s`` (or on a stage change).
-* **Recovery.** At start-up jobs left ``queued`` or ``running`` are submitted again (at-least-once). The worker
-  finds a finished result through its ref instead of recomputing, and results are content-addressed, so a
-  repeated run never duplicates a result.
-* **Integrity.** Result files are verified by hash when served; a missing or corrupt one sends the job back to
-  ``queued`` (recomputed, 503 meanwhile), never served.
+* **Cap.** At most ``max_active_jobs`` jobs of all kinds together are queued or running. The count and the insert
+  (or the re-queue of a cancelled or failed job) happen in one transaction on the single writer thread, so
+  concurrent submissions cannot overshoot it; beyond it the answer is 429 with ``Retry-After``.
+* **Submission.** One watcher task per active job submits ``relight.worker.progress.run_job`` with the kind's task
+  and awaits it (:func:`relight.server.services.runner.run_with_resubmits`); a dict of watchers (mutated only on the
+  event loop) guarantees one submission per job in this process, the primary key guarantees one row. A lost
+  worker is Dask's business: it reschedules the task (``runs`` counts starts).
+* **Progress.** Workers publish Dask events (:mod:`relight.worker.progress`); every event is fanned out to event
+  streams at once, and stored at most every ``progress_interval_s`` (or on a stage change).
+* **Cancellation.** ``DELETE`` marks the row ``cancelled`` and cancels the Dask future; the task stops at its next
+  progress report, and a result that arrives anyway is not stored (only active rows take results).
+* **Recovery.** At start-up jobs of every kind left ``queued`` or ``running`` are submitted again (at-least-once).
 
 Job-table writes go through a single writer thread, so they apply in the order they were issued.
 """
@@ -21,62 +24,37 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Final, TypeVar
 
 from sqlalchemy import func, select, update
 
-from relight.contract.models import (
-    ACTIVE_STATES,
-    JobList,
-    JobParams,
-    JobPublic,
-    JobState,
-    Measurement,
-    Orders,
-    Prediction,
-    ShrmCreate,
-    parse_view,
-)
-from relight.errors import InputError
+from relight.contract.models import ACTIVE_STATES, JobList, JobParams, JobPublic, JobState, Measurement, Prediction
 from relight.server.cluster import Cluster
 from relight.server.config import Settings
-from relight.server.db import Database, Job, Render, utcnow
-from relight.server.problems import Conflict, NotFound, TooManyJobs, Unavailable, Unprocessable
-from relight.server.services.base import aware, content_id, in_thread, utc
+from relight.server.db import Database, Job, utcnow
+from relight.server.problems import Conflict, NotFound, TooManyJobs
+from relight.server.services.base import aware, in_thread, utc
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.events import EventHub
+from relight.server.services.kinds import JobKind, kind_of
 from relight.server.services.metrics import Metrics
-from relight.server.services.plans import PlanService, Prepared
 from relight.server.services.runner import failure_of, run_with_resubmits
-from relight.worker import tasks
-from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
-from relight.worker.results import job_ref, load_manifest
+from relight.worker.blobs import BlobStore
+from relight.worker.progress import run_job
 
 log = logging.getLogger("relight.server")
 T = TypeVar("T")
 
 ACTIVE: Final = tuple(s.value for s in ACTIVE_STATES)
-HEARTBEAT_S: Final = 15.0
-RENDER_TIMEOUT_S: Final = 300.0
-
-
-@dataclass(frozen=True)
-class ResultFile:
-    """A verified result file: its bytes, digest, media type and where the store keeps it."""
-
-    content: bytes
-    sha256: str
-    media_type: str
-    path: Path
+#: Seconds a client is asked to wait after a 429 (the shortest jobs take about this long).
+RETRY_AFTER_S: Final = 5
 
 
 class JobService:
     def __init__(self, settings: Settings, db: Database, store: BlobStore, cluster: Cluster, hub: EventHub,
-                 metrics: Metrics, envmaps: EnvmapService, plans: PlanService) -> None:
+                 metrics: Metrics, envmaps: EnvmapService) -> None:
         self.settings = settings
         self.db = db
         self.store = store
@@ -84,34 +62,50 @@ class JobService:
         self.hub = hub
         self.metrics = metrics
         self.envmaps = envmaps
-        self.plans = plans
         self._watchers: dict[str, asyncio.Task[None]] = {}
         self._futures: dict[str, Any] = {}  # job id -> distributed.Future
         self._submission: dict[str, int] = {}
         self._snapshots: dict[str, JobPublic] = {}
         self._last_store: dict[str, tuple[float, str | None]] = {}
-        self._manifests: dict[str, tuple[str, dict[str, Any]]] = {}
         self._writer = ThreadPoolExecutor(1, thread_name_prefix="relight-db-writer")
         self._events: asyncio.Queue[Any] = asyncio.Queue()
         self._consumer: asyncio.Task[None] | None = None
+        #: Awaited with the job id when a finished job is queued again (the kinds drop what they cached of it).
+        self.on_requeue: list[Callable[[str], Awaitable[None]]] = []
 
     # ------------------------------------------------------------------------------------------------ plumbing
-    async def _write(self, fn: Callable[..., T], *args: Any) -> T:
+    async def write(self, fn: Callable[..., T], *args: Any) -> T:
+        """Run ``fn`` on the single writer thread (every job-table write goes through here)."""
         return await asyncio.get_running_loop().run_in_executor(self._writer, fn, *args)
 
     def _row(self, job_id: str) -> Job | None:
         with self.db.session() as s:
             return s.get(Job, job_id)
 
-    def _public(self, row: Job, *, cached: bool = False) -> JobPublic:
+    async def find(self, job_id: str) -> Job | None:
+        return await in_thread(self._row, job_id)
+
+    async def row(self, job_id: str, kind: str | None = None) -> Job:
+        """The job's row (404 when there is none, or when it is of another kind than ``kind``)."""
+        row = await in_thread(self._row, job_id)
+        if row is None or (kind is not None and row.kind != kind):
+            raise NotFound(f"no {kind or 'job'} with id {job_id!r}")
+        return row
+
+    def public(self, row: Job, *, cached: bool = False) -> JobPublic:
+        kind = kind_of(row.kind)
+        req = row.request or {}
         links = {"self": f"/jobs/{row.id}", "events": f"/jobs/{row.id}/events"}
         if row.state == JobState.succeeded:
-            links |= {"result": f"/shrms/{row.id}", "coefficients.exr": f"/shrms/{row.id}/coefficients.exr",
-                      "coefficients.bin": f"/shrms/{row.id}/coefficients.bin"}
+            links |= kind.links(row.id, row.result)
+        shrm = row.kind == "shrm"
+        envmap = req.get("envmap") or (req.get("scene") or {}).get("environment")
         pub = JobPublic(
-            id=row.id, state=JobState(row.state), stage=row.stage, progress=row.progress, envmap=row.envmap_id,
-            brdf=row.brdf_id, brdf_spec=row.brdf_spec, params=JobParams(**row.params),
-            predicted=Prediction(**row.predicted) if row.predicted else None,
+            id=row.id, kind=row.kind, state=JobState(row.state), stage=row.stage, progress=row.progress,
+            envmap=envmap, brdf=req.get("brdf") if shrm else req.get("brdf_id"),
+            brdf_spec=req.get("brdf_spec") if shrm else None,
+            params=JobParams(**req["params"]) if shrm and req.get("params") is not None else None,
+            request=req, predicted=Prediction(**row.predicted) if row.predicted else None,
             measured=Measurement(**row.measured) if row.measured else None,
             failure_reason=row.failure_reason, runs=row.runs, submissions=row.submissions, worker=row.worker,
             cached=cached, created_at=utc(row.created_at), started_at=aware(row.started_at),
@@ -125,20 +119,19 @@ class JobService:
         return pub
 
     async def get(self, job_id: str) -> JobPublic:
-        row = await in_thread(self._row, job_id)
-        if row is None:
-            raise NotFound(f"no job with id {job_id!r}")
-        return self._public(row)
+        return self.public(await self.row(job_id))
 
-    async def list(self, state: JobState | None, limit: int) -> JobList:
+    async def list(self, state: JobState | None, limit: int, kind: str | None = None) -> JobList:
         def q() -> list[Job]:
             with self.db.session() as s:
                 stmt = select(Job).order_by(Job.created_at.desc()).limit(limit)
                 if state is not None:
                     stmt = stmt.where(Job.state == state.value)
+                if kind is not None:
+                    stmt = stmt.where(Job.kind == kind)
                 return list(s.scalars(stmt))
 
-        return JobList(items=[self._public(r) for r in await in_thread(q)])
+        return JobList(items=[self.public(r) for r in await in_thread(q)])
 
     async def counts(self) -> dict[str, int]:
         def q() -> dict[str, int]:
@@ -160,33 +153,52 @@ class JobService:
             return None
         if row.state not in ACTIVE:
             self._snapshots.pop(job_id, None)
-        pub = self._public(row)
+        pub = self.public(row)
         self._publish(pub)
         return pub
 
     # ------------------------------------------------------------------------------------------------ submit
-    async def submit(self, create: ShrmCreate) -> tuple[JobPublic, int]:
-        """Create (or find) the job for ``create``; returns the job and 202 (work pending) or 200 (finished)."""
-        prep = await self.plans.prepare(create)
-        await self.envmaps.input_ok(prep.envmap.id)
-        row = await in_thread(self._row, prep.job_id)
-        if row is not None:
-            return await self._existing(row)
-        if len(self._watchers) >= self.settings.max_active_jobs:
-            raise TooManyJobs(f"{len(self._watchers)} jobs are queued or running (limit "
-                              f"{self.settings.max_active_jobs}); try again later", headers={"Retry-After": "5"})
-        plan = await self.plans.plan_prepared(prep)
-        predicted = Prediction(seconds=plan.predicted_seconds, rms_error=plan.predicted_error.rms_min_of_errors,
-                               orders=plan.orders, representation=plan.representation)
-        new = Job(id=prep.job_id, state=JobState.queued.value, stage="queued", progress=0.0,
-                  envmap_id=prep.envmap.id, brdf_id=prep.brdf.id, brdf_spec=prep.brdf.spec, params=prep.params,
-                  predicted=predicted.model_dump(mode="json"), runs=0, submissions=0, retryable=0)
-        stored, created = await self._write(self._insert, new)
-        if not created:
-            return await self._existing(stored)
-        self.metrics.inc("jobs_created_total")
-        self._ensure(stored.id)
-        return self._public(stored), 202
+    def _too_many(self, s: Any) -> None:
+        """Raise 429 when the active-job cap is reached (inside the writer's transaction: atomic with the insert)."""
+        active = s.scalar(select(func.count()).select_from(Job).where(Job.state.in_(ACTIVE))) or 0
+        cap = self.settings.max_active_jobs
+        if active >= cap:
+            raise TooManyJobs(f"{active} jobs are queued or running (limit {cap}); try again later",
+                              headers={"Retry-After": str(RETRY_AFTER_S)})
+
+    async def submit(self, kind: JobKind, request: dict[str, Any], *, job_id: str | None = None,
+                     predicted: dict[str, Any] | None = None,
+                     intact: Callable[[Job], Any] | None = None) -> tuple[Job, int]:
+        """The job of ``kind`` for the canonical ``request`` (created, found, or queued again) and 202 (work pending)
+        or 200 (finished).
+
+        ``job_id`` overrides the kind's id rule (SHRM ids predate it); ``predicted`` is stored on a new row;
+        ``intact(row)`` (awaitable) says whether a succeeded job's stored result is still usable (else it is
+        recomputed). Raises 429 beyond the active-job cap.
+        """
+        job_id = job_id or kind.job_id(request)
+        row = await in_thread(self._row, job_id)
+        if row is None:
+            new = Job(id=job_id, kind=kind.name, state=JobState.queued.value, stage="queued", progress=0.0,
+                      request=request, predicted=predicted, runs=0, submissions=0, retryable=0)
+            row, created = await self.write(self._insert, new)
+            if created:
+                self.metrics.inc("jobs_created_total")
+                self._ensure(job_id)
+                return row, 202
+        if row.state == JobState.succeeded:
+            if intact is None or await intact(row):
+                self.metrics.inc("cache_hits_total")
+                return row, 200
+            await self.requeue(job_id, "recomputing: the stored result is missing or corrupt",
+                               from_states=(JobState.succeeded.value,), capped=False)
+        elif row.state in ACTIVE:
+            self._ensure(job_id)
+        elif row.state == JobState.cancelled or row.retryable:
+            await self.requeue(job_id, "resubmitted", from_states=(row.state,), capped=True)
+        else:  # failed for a reason that resubmitting cannot fix (invalid input)
+            return row, 200
+        return (await in_thread(self._row, job_id)) or row, 202
 
     def _insert(self, new: Job) -> tuple[Job, bool]:
         from sqlalchemy.exc import IntegrityError
@@ -196,6 +208,7 @@ class JobService:
                 found = s.get(Job, new.id)
                 if found is not None:
                     return found, False
+                self._too_many(s)
                 s.add(new)
             return new, True
         except IntegrityError:  # another server process inserted it first
@@ -204,45 +217,21 @@ class JobService:
                 raise
             return row, False
 
-    async def _existing(self, row: Job) -> tuple[JobPublic, int]:
-        if row.state == JobState.succeeded:
-            if await self._result_intact(row):
-                self.metrics.inc("cache_hits_total")
-                return self._public(row, cached=True), 200
-            await self._requeue(row.id, "recomputing: the stored result is missing or corrupt",
-                                from_states=(JobState.succeeded.value,))
-        elif row.state in ACTIVE:
-            self._ensure(row.id)
-        elif row.state == JobState.cancelled or row.retryable:
-            await self._requeue(row.id, "resubmitted", from_states=(row.state,))
-        else:  # failed for a reason that resubmitting cannot fix (invalid input)
-            return self._public(row), 200
-        fresh = await in_thread(self._row, row.id)
-        return self._public(fresh or row), 202
+    async def requeue(self, job_id: str, stage: str, *, from_states: tuple[str, ...], capped: bool) -> None:
+        """Queue a finished job again (a cancelled or retryable one: under the cap; a lost result: always)."""
 
-    async def _result_intact(self, row: Job) -> bool:
-        if row.result_sha256 is None:
-            return False
-        try:
-            manifest = await in_thread(load_manifest, self.store, row.result_sha256)
-            for info in manifest["files"].values():
-                await in_thread(self.store.verified_path, info["sha256"])
-        except (BlobMissing, BlobCorrupt, KeyError, ValueError):
-            return False
-        self._manifests[row.id] = (row.result_sha256, manifest)
-        return True
-
-    async def _requeue(self, job_id: str, stage: str, *, from_states: tuple[str, ...]) -> None:
         def do() -> int:
             with self.db.session() as s:
+                if capped:
+                    self._too_many(s)
                 res = s.execute(update(Job).where(Job.id == job_id, Job.state.in_(from_states)).values(
                     state=JobState.queued.value, stage=stage, progress=0.0, failure_reason=None, retryable=0,
-                    result_sha256=None, finished_at=None, worker=None))
+                    result=None, result_sha256=None, finished_at=None, worker=None))
                 return int(getattr(res, "rowcount", 0) or 0)
 
-        if await self._write(do):
-            self._manifests.pop(job_id, None)
-            await in_thread(self.store.delete_ref, job_ref(job_id))
+        if await self.write(do):
+            for hook in self.on_requeue:
+                await hook(job_id)
             await self._republish(job_id)
         self._ensure(job_id)
 
@@ -265,18 +254,16 @@ class JobService:
         me = asyncio.current_task()
 
         async def submit(attempt: int) -> Any:
-            row = await self._write(self._mark_submitted, job_id)
+            row = await self.write(self._mark_submitted, job_id)
             if row is None:
                 return None
+            kind = kind_of(row.kind)
             self._submission[job_id] = row.submissions
-            self._publish(self._public(row))
-            payload = {
-                "job_id": job_id, "submission": row.submissions, "envmap": row.envmap_id, "brdf": row.brdf_spec,
-                "params": row.params, "max_pixels": self.settings.max_pixels,
-                "test_delay_s": self.settings.test_job_delay_s,
-            }
-            fut = self.cluster.submit(tasks.compute_shrm, str(self.store.root), payload,
-                                      key=f"relight-job-{job_id}-{row.submissions}")
+            self._publish(self.public(row))
+            payload = {"job_id": job_id, "submission": row.submissions, "request": row.request,
+                       "max_pixels": self.settings.max_pixels, "test_delay_s": self.settings.test_job_delay_s}
+            fut = self.cluster.submit(run_job, kind.task, str(self.store.root), payload,
+                                      key=f"relight-{kind.name}-{job_id}-{row.submissions}")
             self._futures[job_id] = fut
             self.metrics.inc("job_submissions_total")
             return fut
@@ -297,46 +284,33 @@ class JobService:
                 await self._succeed(job_id, self._submission[job_id], result)
         finally:
             self._futures.pop(job_id, None)
+            self._submission.pop(job_id, None)
+            self._last_store.pop(job_id, None)
             if self._watchers.get(job_id) is me:
                 del self._watchers[job_id]
 
     async def _succeed(self, job_id: str, submission: int, result: dict[str, Any]) -> None:
-        manifest: dict[str, Any] = result["manifest"]
-        orders = manifest.get("orders") or {}
-
         def do() -> Job | None:
             with self.db.session() as s:
                 row = s.get(Job, job_id)
                 if row is None or row.state not in ACTIVE or row.submissions != submission:
-                    return None
-                now = utcnow()
-                submitted = aware(row.submitted_at) or now
-                row.measured = Measurement(
-                    seconds=(now - submitted).total_seconds(), task_seconds=result.get("task_seconds"),
-                    compute_seconds=result.get("compute_seconds"), stage_seconds=result.get("timings"),
-                    rms_error=orders.get("rms_min_of_errors"),
-                    rms_bound=orders.get("rms_appendix_b"),
-                    orders=Orders(F_L=orders.get("F_L"), F_rho=orders.get("F_rho"), F_B=orders.get("F_B", 0),
-                                  P_B=orders.get("P_B", 0)) if orders else None,
-                    reused=bool(result.get("reused")),
-                ).model_dump(mode="json")
+                    return None  # cancelled (or superseded) meanwhile: the result is not stored
+                kind_of(row.kind).store_result(row, result)
                 row.state, row.stage, row.progress = JobState.succeeded.value, "done", 1.0
-                row.result_sha256 = result["manifest_sha256"]
-                row.finished_at = now
+                row.finished_at = utcnow()
                 row.runs = max(row.runs, 1)
                 row.failure_reason = None
                 return row
 
-        row = await self._write(do)
+        row = await self.write(do)
         if row is None:
             return
-        self._manifests[job_id] = (result["manifest_sha256"], manifest)
         self.metrics.inc("jobs_succeeded_total")
         if row.measured:
             self.metrics.job_seconds.observe(float(row.measured.get("seconds") or 0.0))
             self.metrics.compute_seconds.observe(float(row.measured.get("compute_seconds") or 0.0))
         self._snapshots.pop(job_id, None)
-        self._publish(self._public(row))
+        self._publish(self.public(row))
 
     async def _fail(self, job_id: str, submission: int, exc: BaseException) -> None:
         reason, retryable = failure_of(exc)
@@ -353,11 +327,11 @@ class JobService:
                 row.finished_at = utcnow()
                 return row
 
-        row = await self._write(do)
+        row = await self.write(do)
         if row is not None:
             self.metrics.inc("jobs_failed_total")
             self._snapshots.pop(job_id, None)
-            self._publish(self._public(row))
+            self._publish(self.public(row))
 
     # ------------------------------------------------------------------------------------------------ progress
     def on_event(self, event: Any) -> None:
@@ -405,7 +379,7 @@ class JobService:
                         state=JobState.running.value, stage="started", worker=worker, runs=Job.runs + 1,
                         started_at=utcnow()))
 
-            await self._write(do)  # stored before it is shown: "running" in the API means it is in the table
+            await self.write(do)  # stored before it is shown: "running" in the API means it is in the table
             self.metrics.inc("job_runs_total")
             snap = self._snapshots.get(job_id)
             if snap is not None and snap.state in ACTIVE_STATES:
@@ -425,43 +399,31 @@ class JobService:
                         s.execute(update(Job).where(Job.id == job_id, Job.state.in_(ACTIVE)).values(
                             stage=stage, progress=fraction))
 
-                await self._write(store_progress)
+                await self.write(store_progress)
 
-    async def events(self, job_id: str, first: JobPublic) -> AsyncIterator[str]:
-        """Server-sent events: the current state, every update, then ``end`` with the final state."""
+    async def events(self, job_id: str) -> AsyncIterator[tuple[str, JobPublic]]:
+        """The job's updates as ``(event, job)``: ``job`` with the current state, one per update, then ``end`` with
+        the final state (the route sends them as server-sent events)."""
         q = self.hub.subscribe(job_id)
-        seq = 0
-
-        def sse(event: str, data: str) -> str:
-            nonlocal seq
-            seq += 1
-            return f"id: {seq}\nevent: {event}\ndata: {data}\n\n"
-
         try:
             current = await self.get(job_id)  # subscribed first: nothing is missed between the two
-            yield sse("job", current.model_dump_json())
+            yield "job", current
             if current.state.terminal:
-                yield sse("end", current.model_dump_json())
+                yield "end", current
                 return
             while True:
-                try:
-                    payload = await asyncio.wait_for(q.get(), HEARTBEAT_S)
-                except TimeoutError:
-                    yield ": keep-alive\n\n"
-                    continue
-                pub = JobPublic.model_validate(payload)
-                yield sse("job", pub.model_dump_json())
+                pub = JobPublic.model_validate(await q.get())
+                yield "job", pub
                 if pub.state.terminal:
-                    yield sse("end", pub.model_dump_json())
+                    yield "end", pub
                     return
         finally:
             self.hub.unsubscribe(job_id, q)
 
     # ------------------------------------------------------------------------------------------------ cancel
-    async def cancel(self, job_id: str) -> JobPublic:
-        row = await in_thread(self._row, job_id)
-        if row is None:
-            raise NotFound(f"no job with id {job_id!r}")
+    async def cancel(self, job_id: str, kind: str | None = None) -> JobPublic:
+        """Cancel a queued or running job of any kind (409 when it has finished already)."""
+        row = await self.row(job_id, kind)
         if row.state in (JobState.succeeded, JobState.failed):
             raise Conflict(f"job {job_id} has already {row.state}; there is nothing to cancel", state=row.state)
         if row.state in ACTIVE:
@@ -472,7 +434,7 @@ class JobService:
                         failure_reason="cancelled by request"))
                     return int(getattr(res, "rowcount", 0) or 0)
 
-            if await self._write(do):
+            if await self.write(do):
                 self.metrics.inc("jobs_cancelled_total")
             fut = self._futures.get(job_id)
             if fut is not None:
@@ -483,7 +445,7 @@ class JobService:
 
     # ------------------------------------------------------------------------------------------------ recovery
     async def resume(self) -> int:
-        """Submit again every job left queued or running by a previous server process."""
+        """Submit again every job, of every kind, left queued or running by a previous server process."""
 
         def do() -> list[str]:
             with self.db.session() as s:
@@ -493,7 +455,7 @@ class JobService:
                         state=JobState.queued.value, stage="resubmitted after a restart", worker=None))
                 return ids
 
-        ids = await self._write(do)
+        ids = await self.write(do)
         for job_id in ids:
             self._ensure(job_id)
         if ids:
@@ -509,82 +471,5 @@ class JobService:
         await asyncio.gather(*watchers, return_exceptions=True)
         self._writer.shutdown(wait=True)
 
-    # ------------------------------------------------------------------------------------------------ results
-    async def manifest(self, job_id: str) -> tuple[str, dict[str, Any]]:
-        cached = self._manifests.get(job_id)
-        if cached is not None:
-            return cached
-        row = await in_thread(self._row, job_id)
-        if row is None:
-            raise NotFound(f"no result with id {job_id!r}")
-        if row.state != JobState.succeeded or row.result_sha256 is None:
-            raise Conflict(f"job {job_id} is {row.state}; it has no result yet", state=row.state)
-        try:
-            manifest = await in_thread(load_manifest, self.store, row.result_sha256)
-        except (BlobMissing, BlobCorrupt) as exc:
-            await self._recompute(job_id, exc)
-            raise AssertionError("unreachable") from exc
-        self._manifests[job_id] = (row.result_sha256, manifest)
-        return row.result_sha256, manifest
 
-    async def _recompute(self, job_id: str, exc: BaseException) -> None:
-        log.warning("result of job %s unusable (%s): recomputing", job_id, exc)
-        self._manifests.pop(job_id, None)
-        self.metrics.inc("results_recomputed_total")
-        await self._requeue(job_id, "recomputing: the stored result was missing or corrupt",
-                            from_states=(JobState.succeeded.value,))
-        raise Unavailable(f"the stored result of job {job_id} was missing or corrupt ({exc}); it is being "
-                          "recomputed", headers={"Retry-After": "2"}, job=f"/jobs/{job_id}")
-
-    async def result_file(self, job_id: str, name: str) -> ResultFile:
-        """A result file's verified bytes (held in memory after the first read: one ``stat`` per request)."""
-        _, manifest = await self.manifest(job_id)
-        info = manifest["files"][name]
-        digest = info["sha256"]
-        data = self.store.cached_bytes(digest)
-        if data is None:
-            try:
-                data = await in_thread(self.store.load, digest)
-            except (BlobMissing, BlobCorrupt) as exc:
-                await self._recompute(job_id, exc)
-                raise AssertionError("unreachable") from exc
-        return ResultFile(data, digest, info.get("media_type", "application/octet-stream"), self.store.path(digest))
-
-    async def reflection(self, job_id: str, view_text: str) -> ResultFile:
-        try:
-            view = parse_view(view_text)
-        except ValueError as exc:
-            raise Unprocessable(str(exc)) from None
-        manifest_digest, _ = await self.manifest(job_id)
-        canon = [round(v, 9) + 0.0 for v in view]
-        key = content_id({"manifest": manifest_digest, "view": canon})
-
-        def lookup() -> str | None:
-            with self.db.session() as s:
-                r = s.get(Render, key)
-                return r.sha256 if r else None
-
-        digest = await in_thread(lookup)
-        if digest is not None:
-            try:
-                return ResultFile(await in_thread(self.store.load, digest), digest, "image/x-exr",
-                                  self.store.path(digest))
-            except (BlobMissing, BlobCorrupt):
-                digest = None
-        fut = self.cluster.submit(tasks.render_reflection, str(self.store.root), manifest_digest, canon,
-                                  key=f"relight-render-{key}")
-        try:
-            digest = str(await asyncio.wait_for(fut, RENDER_TIMEOUT_S))
-        except InputError as exc:
-            raise Unprocessable(str(exc)) from None
-
-        def save() -> None:
-            with self.db.session() as s:
-                if s.get(Render, key) is None:
-                    s.add(Render(key=key, job_id=job_id, view=",".join(f"{v:.9g}" for v in canon), sha256=digest))
-
-        await self._write(save)
-        return ResultFile(await in_thread(self.store.load, digest), digest, "image/x-exr", self.store.path(digest))
-
-
-__all__ = ["JobService", "Prepared", "ResultFile"]
+__all__ = ["JobService"]

@@ -1,4 +1,5 @@
-"""Scenes as jobs (``POST /scenes``): store a scene, plan it and run the plan in a worker (``relight.planning``).
+"""Scenes as jobs (``POST /scenes``, the ``scene`` job kind of :mod:`relight.server.services.jobs`): store a scene,
+plan it and run the plan in a worker (``relight.planning``).
 
 The scene is validated twice before anything runs: by the pydantic model (shapes, ranges, exactly one of a
 tolerance or a time budget) and by the core's own parser (``relight.planning.scene_from_dict``: distances beyond the
@@ -11,39 +12,55 @@ store; ``GET /scenes/{id}/files/{name}`` serves them verified.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from fastapi import Request
-
 from relight.contract.models import JobState, SceneCreate, ScenePublic
 from relight.errors import InputError
+from relight.server.db import Job
 from relight.server.problems import Conflict, NotFound, Unprocessable
 from relight.server.services.base import aware, in_thread, utc
-from relight.server.services.tradeoffs import Analysis, AnalysisService, service_for
+from relight.server.services.brdfs import BrdfService
+from relight.server.services.envmaps import EnvmapService
+from relight.server.services.jobs import JobService
+from relight.server.services.kinds import JobKind, register
+from relight.worker.analysis import run_scene
 from relight.worker.blobs import BlobCorrupt, BlobMissing
 from relight.worker.specs import to_core
 
 
-class SceneService(AnalysisService):
-    kind = "scene"
-    result_version = 2  # 2: per-object float16 textures for the viewer ({name}.coefficients.bin, .texture.json)
+def _links(job_id: str, result: dict[str, Any] | None) -> dict[str, str]:
+    links = {"result": f"/scenes/{job_id}"}
+    for name in ((result or {}).get("files") or {}):
+        links[name] = f"/scenes/{job_id}/files/{name}"
+    return links
 
-    def task(self) -> Callable[..., Any]:
-        from relight.worker.analysis import run_scene
 
-        return run_scene
+SCENE = register(JobKind(
+    "scene", run_scene,
+    result_version=2,  # 2: per-object float16 textures for the viewer ({name}.coefficients.bin, .texture.json)
+    links=_links,
+))
 
-    def public(self, row: Analysis) -> ScenePublic:
+
+class SceneService:
+    def __init__(self, jobs: JobService, envmaps: EnvmapService, brdfs: BrdfService) -> None:
+        self.jobs = jobs
+        self.envmaps = envmaps
+        self.brdfs = brdfs
+        self.store = jobs.store
+
+    def public(self, row: Job) -> ScenePublic:
         result = row.result or {}
-        links = {"self": f"/scenes/{row.id}"}
+        job = self.jobs.public(row)
+        links = {"self": f"/scenes/{row.id}", "job": f"/jobs/{row.id}", "events": f"/jobs/{row.id}/events"}
         for name in (result.get("files") or {}):
             links[name] = f"/scenes/{row.id}/files/{name}"
         return ScenePublic(
-            id=row.id, state=JobState(row.state), failure_reason=row.failure_reason, scene=row.request["scene"],
-            plan=result.get("plan"), result=result.get("result"), files=result.get("files"),
-            created_at=utc(row.created_at), finished_at=aware(row.finished_at), links=links,
+            id=row.id, state=job.state, stage=job.stage, progress=job.progress, failure_reason=row.failure_reason,
+            scene=row.request["scene"], plan=result.get("plan"), result=result.get("result"),
+            files=result.get("files"), created_at=utc(row.created_at), finished_at=aware(row.finished_at),
+            links=links,
         )
 
     async def submit(self, create: SceneCreate) -> tuple[ScenePublic, int]:
@@ -70,15 +87,15 @@ class SceneService(AnalysisService):
             await in_thread(check)
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
-        row, status = await self.submit_request({"scene": scene, "preview_size": create.preview_size})
+        row, status = await self.jobs.submit(SCENE, {"scene": scene, "preview_size": create.preview_size})
         return self.public(row), status
 
     async def get(self, scene_id: str) -> ScenePublic:
-        return self.public(await self.row(scene_id))
+        return self.public(await self.jobs.row(scene_id, SCENE.name))
 
     async def file(self, scene_id: str, name: str) -> tuple[Path, str, str]:
         """(verified path, digest, media type) of one output file of a finished scene."""
-        row = await self.row(scene_id)
+        row = await self.jobs.row(scene_id, SCENE.name)
         if row.state != JobState.succeeded:
             raise Conflict(f"scene {scene_id} is {row.state}; it has no files yet", state=row.state)
         info = ((row.result or {}).get("files") or {}).get(name)
@@ -89,8 +106,3 @@ class SceneService(AnalysisService):
         except (BlobMissing, BlobCorrupt) as exc:
             raise NotFound(f"the file {name!r} of scene {scene_id} is gone ({exc}); submit the scene again") from None
         return path, str(info["sha256"]), str(info.get("media_type", "application/octet-stream"))
-
-
-async def scene_service(request: Request) -> SceneService:
-    svc: SceneService = service_for(request, "scene_service", SceneService)
-    return svc

@@ -11,17 +11,14 @@ environment map as a float16 texture for the viewer's background.
 
 PNGs go through the project's display transform (``exposure`` stops, ``tonemap`` aces|reinhard|none); EXRs are
 float32 linear radiance. Everything is cached in memory (bounded) by content: result digest, canonical view,
-parameters.
+parameters (:class:`relight.server.services.render.RenderService`, which also owns the GL thread).
 """
 
 from __future__ import annotations
 
 import asyncio
-import concurrent.futures
 import logging
 import math
-import threading
-from collections import OrderedDict
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -30,7 +27,7 @@ from starlette.responses import Response
 
 from relight.contract.models import parse_view
 from relight.errors import InputError
-from relight.server.api.deps import EnvmapsDep, JobsDep, ServicesDep
+from relight.server.api.deps import EnvmapsDep, RenderDep, ServicesDep, ShrmsDep
 from relight.server.problems import Unavailable, Unprocessable, problem_responses
 from relight.server.services.base import content_id
 
@@ -47,75 +44,12 @@ REFERENCE_TIMEOUT_S = 300.0
 REFERENCE_ROWS_PER_BAND, REFERENCE_MIN_ROWS = 4, 64
 TEXTURE_TIMEOUT_S = 120.0
 MAX_RENDER_SIZE = 1024
-_CACHE_ITEMS = 64
 
 ViewQuery = Annotated[str, Query(description="view direction x,y,z toward the viewer (normalised here)",
                                  examples=["0,0,1"])]
 ExposureQuery = Annotated[float, Query(ge=-20.0, le=20.0, description="PNG only: exposure in stops")]
 TonemapQuery = Annotated[Literal["aces", "reinhard"], Query(description="PNG only: display transform "
                                                                       "(relight.envmap.tonemap)")]
-
-
-class _Cache:
-    """A small thread-safe LRU of computed images and textures."""
-
-    def __init__(self, items: int) -> None:
-        self.items = items
-        self._data: OrderedDict[Any, Any] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: Any) -> Any:
-        with self._lock:
-            if key in self._data:
-                self._data.move_to_end(key)
-                return self._data[key]
-        return None
-
-    def put(self, key: Any, value: Any) -> None:
-        with self._lock:
-            self._data[key] = value
-            self._data.move_to_end(key)
-            while len(self._data) > self.items:
-                self._data.popitem(last=False)
-
-
-_images = _Cache(_CACHE_ITEMS)
-
-
-class _GL:
-    """One OpenGL context on one dedicated thread (a GL context is bound to the thread that made it), with the
-    renderers of the most recent results."""
-
-    def __init__(self) -> None:
-        self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="relight-gl")
-        self._ctx: Any = None
-        self._renderers: OrderedDict[str, Any] = OrderedDict()
-
-    def _render(self, digest: str, manifest: dict[str, Any], data: bytes, **kw: Any) -> np.ndarray:
-        from relight.gl import layout, render
-
-        if self._ctx is None:
-            self._ctx = render.create_context()
-        r = self._renderers.get(digest)
-        if r is None:
-            lay = layout.from_manifest(manifest)
-            arr = np.frombuffer(data, dtype="<f2")
-            if arr.size != lay.num_layers * lay.height * lay.width * 3:
-                raise InputError(f"coefficients.bin holds {arr.size} values; the manifest describes "
-                                 f"{lay.num_layers} x {lay.height} x {lay.width} x 3")
-            r = render.Renderer(lay, arr.reshape(lay.num_layers, lay.height, lay.width, 3), ctx=self._ctx)
-            self._renderers[digest] = r
-            while len(self._renderers) > 4:
-                self._renderers.popitem(last=False)[1].release()
-        self._renderers.move_to_end(digest)
-        return np.asarray(r.render(**kw))
-
-    async def render(self, digest: str, manifest: dict[str, Any], data: bytes, **kw: Any) -> np.ndarray:
-        loop = asyncio.get_running_loop()
-        return await loop.run_in_executor(self._pool, lambda: self._render(digest, manifest, data, **kw))
-
-
-_gl = _GL()
 
 
 def _view(text: str) -> list[float]:
@@ -141,7 +75,8 @@ async def _in_thread(fn: Any, *args: Any) -> Any:
 async def render_view(
     shrm_id: str,
     fmt: Format,
-    jobs: JobsDep,
+    shrms: ShrmsDep,
+    renders: RenderDep,
     view: ViewQuery = "0,0,1",
     size: Annotated[int, Query(ge=8, le=MAX_RENDER_SIZE)] = 256,
     object: Annotated[Literal["sphere", "bunny", "teapot"], Query()] = "sphere",  # noqa: A002 - the API's name
@@ -154,20 +89,20 @@ async def render_view(
 ) -> Response:
     """The result on a sphere, bunny or teapot seen from the distant direction V (orthographic, +Y up)."""
     v = _view(view)
-    digest, manifest = await jobs.manifest(shrm_id)
+    digest, manifest = await shrms.manifest(shrm_id)
     key = ("render", digest, tuple(v), size, object, mode, rotation)
-    image = _images.get(key)
+    image = renders.cached(key)
     if image is None:
-        f = await jobs.result_file(shrm_id, "coefficients.bin")
+        f = await shrms.result_file(shrm_id, "coefficients.bin")
         data = await _in_thread(f.path.read_bytes)
         try:
-            image = await _gl.render(digest, manifest, data, view=v, size=size, obj=object, mode=mode,
+            image = await renders.render(digest, manifest, data, view=v, size=size, obj=object, mode=mode,
                                      env_rotation=math.radians(rotation))
         except RuntimeError as exc:
             raise Unavailable(f"no OpenGL context on this server: {exc}") from None
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
-        _images.put(key, image)
+        renders.keep(key, image)
     body = await _in_thread(_encode, image, fmt, exposure, tonemap,
                             {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.object": object})
     return Response(body, media_type=MEDIA[fmt], headers={"Cache-Control": "public, max-age=3600"})
@@ -178,7 +113,8 @@ async def render_view(
 async def reference_view(
     shrm_id: str,
     fmt: Format,
-    jobs: JobsDep,
+    shrms: ShrmsDep,
+    renders: RenderDep,
     envmaps: EnvmapsDep,
     services: ServicesDep,
     view: ViewQuery = "0,0,1",
@@ -193,14 +129,14 @@ async def reference_view(
     from relight.gl.views import reference_sphere_image
 
     v = _view(view)
-    digest, manifest = await jobs.manifest(shrm_id)
+    digest, manifest = await shrms.manifest(shrm_id)
     envmap_id = envmaps.known_digest(str(manifest.get("envmap", "")))
     if env_rows is None:
         f_b = int((manifest.get("orders") or {}).get("F_B") or 32)
         env_rows = max(REFERENCE_MIN_ROWS, REFERENCE_ROWS_PER_BAND * (f_b + 1))
     env_rows = min(env_rows, int((manifest.get("input") or {}).get("height") or env_rows))
     key = ("reference", digest, tuple(v), size, env_rows)
-    image = _images.get(key)
+    image = renders.cached(key)
     if image is None:
         await envmaps.input_ok(envmap_id)
         path = str(services.store.path(envmap_id))
@@ -218,7 +154,7 @@ async def reference_view(
         except asyncio.CancelledError:
             await services.cluster.cancel(fut)  # the client went away: free the worker
             raise
-        _images.put(key, image)
+        renders.keep(key, image)
     body = await _in_thread(_encode, image, fmt, exposure, tonemap,
                             {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.reference": "angular",
                              "relight.env_rows": str(env_rows)})
@@ -236,6 +172,7 @@ async def envmap_texture(
     request: Request,
     envmaps: EnvmapsDep,
     services: ServicesDep,
+    renders: RenderDep,
     rows: Annotated[int, Query(ge=8, le=2048, description="rows of the lat-long texture (area-resampled)")] = 256,
 ) -> Response:
     """The environment map as little-endian float16 RGB, rows x 2 rows x 3, row 0 = +Y (the viewer's background)."""
@@ -243,7 +180,7 @@ async def envmap_texture(
 
     await envmaps.get(envmap_id)  # 404 for an unknown map
     key = ("texture", envmap_id, rows)
-    cached = _images.get(key)
+    cached = renders.cached(key)
     if cached is None:
         await envmaps.input_ok(envmap_id)
         path = str(services.store.path(envmap_id))
@@ -253,7 +190,7 @@ async def envmap_texture(
             cached = await asyncio.wait_for(fut, TEXTURE_TIMEOUT_S)
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
-        _images.put(key, cached)
+        renders.keep(key, cached)
     data, h, w = cached
     etag = f'"{envmap_id[:32]}-{rows}"'
     headers = {"X-Texture-Shape": f"{h},{w},3", "ETag": etag, "Cache-Control": "public, max-age=31536000, immutable",

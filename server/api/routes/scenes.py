@@ -2,19 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import AsyncIterator
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, Request, Response
+from fastapi.sse import EventSourceResponse, ServerSentEvent
 from starlette.responses import Response as StarletteResponse
 
 from relight.contract.models import SceneCreate, ScenePublic
+from relight.server.api.deps import JobsDep, ScenesDep
 from relight.server.api.http import blob_response
+from relight.server.api.routes.jobs import EVENTS_RESPONSES, existing, job_stream
 from relight.server.problems import problem_responses
-from relight.server.services.scenes import SceneService, scene_service
+from relight.server.services.scenes import SCENE
 
 router = APIRouter(prefix="/scenes", tags=["scenes"])
-
-ScenesDep = Annotated[SceneService, Depends(scene_service)]
 BINARY = {"schema": {"type": "string", "format": "binary"}}
 
 
@@ -42,3 +44,18 @@ async def scene_file(scene_id: str, name: str, request: Request, scenes: ScenesD
     """One output file of a finished scene (verified against its SHA-256)."""
     path, digest, media_type = await scenes.file(scene_id, name)
     return blob_response(request, path, digest, media_type, filename=name)
+
+
+@router.get("/{scene_id}/events", response_class=EventSourceResponse, responses=EVENTS_RESPONSES)
+async def scene_events(scene_id: Annotated[str, existing(SCENE.name, "scene_id")],
+                       jobs: JobsDep) -> AsyncIterator[ServerSentEvent]:
+    """The scene's job as server-sent events until it ends (``/jobs/{id}/events``)."""
+    async for event in job_stream(jobs, scene_id):
+        yield event
+
+
+@router.delete("/{scene_id}", response_model=ScenePublic, responses=problem_responses(401, 404, 409, 422))
+async def cancel_scene(scene_id: str, jobs: JobsDep, scenes: ScenesDep) -> ScenePublic:
+    """Cancel a queued or running scene (409 if it already finished)."""
+    await jobs.cancel(scene_id, SCENE.name)
+    return await scenes.get(scene_id)
