@@ -177,8 +177,8 @@ class JobService:
         recomputed). Raises 429 beyond the active-job cap.
         """
         job_id = job_id or kind.job_id(request)
-        row = await in_thread(self._row, job_id)
-        if row is None:
+        found = await self.find(job_id)
+        if found is None:
             new = Job(id=job_id, kind=kind.name, state=JobState.queued.value, stage="queued", progress=0.0,
                       request=request, predicted=predicted, runs=0, submissions=0, retryable=0)
             row, created = await self.write(self._insert, new)
@@ -186,6 +186,8 @@ class JobService:
                 self.metrics.inc("jobs_created_total")
                 self._ensure(job_id)
                 return row, 202
+        else:
+            row = found
         if row.state == JobState.succeeded:
             if intact is None or await intact(row):
                 self.metrics.inc("cache_hits_total")
@@ -198,7 +200,7 @@ class JobService:
             await self.requeue(job_id, "resubmitted", from_states=(row.state,), capped=True)
         else:  # failed for a reason that resubmitting cannot fix (invalid input)
             return row, 200
-        return (await in_thread(self._row, job_id)) or row, 202
+        return (await self.find(job_id)) or row, 202
 
     def _insert(self, new: Job) -> tuple[Job, bool]:
         from sqlalchemy.exc import IntegrityError

@@ -1,5 +1,11 @@
 // The relight HTTP API from the browser: JSON in and out, RFC 9457 problem details turned into ApiError (with
-// the server's own detail text), server-sent job events read with fetch (so the API key header can be sent).
+// the server's own detail text), server-sent job events read with fetch (so the API key header can be sent), for
+// every kind of job.
+
+/** Job states after which nothing changes. */
+export const TERMINAL = ['succeeded', 'failed', 'cancelled'];
+/** Silence on a job's event stream after which it counts as lost (the server pings every 15 s). */
+export const EVENTS_IDLE_MS = 45000;
 
 export class ApiError extends Error {
   constructor(status, problem) {
@@ -128,40 +134,106 @@ export class Api {
     return this.request('GET', `/scenes/${id}/files/${encodeURIComponent(name)}`, { as: 'arrayBuffer' });
   }
 
-  /** Calls onJob(job) for every `job` event until `end`; resolves with the last job. */
-  async events(id, onJob, signal) {
-    const resp = await this.request('GET', `/jobs/${id}/events`, { as: 'response', signal,
-      headers: { Accept: 'text/event-stream' } });
-    const reader = resp.body.pipeThrough(new TextDecoderStream()).getReader();
-    let buffer = '';
-    let last = null;
-    for (;;) {
-      const { value, done } = await reader.read();
-      if (done) {
-        return last;
-      }
-      buffer += value;
-      let cut;
-      while ((cut = buffer.search(/\r?\n\r?\n/)) >= 0) {
-        const block = buffer.slice(0, cut);
-        buffer = buffer.slice(cut).replace(/^\r?\n\r?\n/, '');
-        const event = { event: 'message', data: [] };
-        for (const line of block.split(/\r?\n/)) {
-          if (line.startsWith('event:')) {
-            event.event = line.slice(6).trim();
-          } else if (line.startsWith('data:')) {
-            event.data.push(line.slice(5).replace(/^ /, ''));
+  /**
+   * GET /jobs/{id}/events (any kind of job: SHRM, sweep, scene): calls onJob(job) for every `job` event and
+   * resolves with the final job at `end`, or with null when the stream closes before its end.
+   *
+   * Read with fetch rather than EventSource because EventSource cannot send the Authorization header a keyed
+   * server needs. Rejects with ApiError for an error answer, and with a timeout Error when nothing arrives for
+   * `idleMs` (the server sends a keep-alive comment every 15 s on an idle stream, so silence means it is gone).
+   */
+  async events(id, onJob, { signal, idleMs = EVENTS_IDLE_MS } = {}) {
+    const ctrl = new AbortController();
+    const onAbort = () => ctrl.abort(signal.reason);
+    signal?.addEventListener('abort', onAbort);
+    let timer = null;
+    let idle = false;
+    let reader = null;
+    const lost = () => new Error(`no news of job ${id.slice(0, 12)} for ${Math.round(idleMs / 1000)} s: the event `
+      + 'stream was lost');
+    const arm = () => {
+      clearTimeout(timer);
+      timer = setTimeout(() => {
+        idle = true;
+        ctrl.abort();
+        reader?.cancel().catch(() => {}); // a pending read ends at once
+      }, idleMs);
+    };
+    arm();
+    try {
+      const resp = await this.request('GET', `/jobs/${id}/events`, { as: 'response', signal: ctrl.signal,
+        headers: { Accept: 'text/event-stream' } });
+      reader = resp.body.pipeThrough(new TextDecoderStream()).getReader();
+      let buffer = '';
+      for (;;) {
+        const { value, done } = await reader.read();
+        if (idle) {
+          throw lost();
+        }
+        if (done) {
+          return null;
+        }
+        arm();
+        buffer += value;
+        let cut;
+        while ((cut = buffer.search(/\r?\n\r?\n/)) >= 0) {
+          const event = parseEvent(buffer.slice(0, cut));
+          buffer = buffer.slice(cut).replace(/^\r?\n\r?\n/, '');
+          if (event.data && (event.event === 'job' || event.event === 'end')) {
+            const job = JSON.parse(event.data);
+            if (event.event === 'end') {
+              reader.cancel().catch(() => {});
+              return job;
+            }
+            onJob(job);
           }
         }
-        const data = event.data.join('\n');
-        if (event.event === 'job' && data) {
-          last = JSON.parse(data);
-          onJob(last);
-        } else if (event.event === 'end') {
-          reader.cancel().catch(() => {});
-          return last;
-        }
       }
+    } catch (err) {
+      throw idle ? lost() : err;
+    } finally {
+      clearTimeout(timer);
+      signal?.removeEventListener('abort', onAbort);
     }
   }
+
+  /**
+   * Follow a job to its end: its event stream, opened again (after reading the job once) when it breaks or goes
+   * silent, up to `attempts` times; resolves with the final job (its state may be failed or cancelled).
+   */
+  async follow(id, onJob, { attempts = 3, idleMs = EVENTS_IDLE_MS } = {}) {
+    let lastError = null;
+    for (let i = 0; i < attempts; i += 1) {
+      try {
+        const final = await this.events(id, onJob, { idleMs });
+        if (final) {
+          return final;
+        }
+      } catch (err) {
+        if (err instanceof ApiError) {
+          throw err;
+        }
+        lastError = err;
+      }
+      const job = await this.job(id);
+      onJob(job);
+      if (TERMINAL.includes(job.state)) {
+        return job;
+      }
+    }
+    throw lastError || new Error(`the event stream of job ${id.slice(0, 12)} kept closing before the job ended`);
+  }
+}
+
+/** One server-sent event block: its `event` name and joined `data` lines (comments and ids ignored). */
+function parseEvent(block) {
+  const event = { event: 'message', data: [] };
+  for (const line of block.split(/\r?\n/)) {
+    if (line.startsWith('event:')) {
+      event.event = line.slice(6).trim();
+    } else if (line.startsWith('data:')) {
+      event.data.push(line.slice(5).replace(/^ /, ''));
+    }
+  }
+  return { event: event.event, data: event.data.join('\n') };
 }

@@ -1,6 +1,6 @@
 // The viewer page: wires the panel (web/index.html) to the API (api.js) and the 3-D view (viewer.js).
 // window.relight exposes the state for tests and the benchmark (tests/web, bench/viewer.py).
-import { Api, ApiError } from './api.js';
+import { Api, ApiError, TERMINAL } from './api.js';
 import { compare } from './compare.js';
 import { modelsFromOpenapi, specFor } from './materials.js';
 import { loadFile, loadSample } from './objects.js';
@@ -216,11 +216,8 @@ async function compute() {
     const { job, cached } = await state.api.submit(requestBody());
     showJob(job);
     let final = job;
-    if (!cached && !['succeeded', 'failed', 'cancelled'].includes(job.state)) {
-      final = (await state.api.events(job.id, showJob)) || (await state.api.job(job.id));
-    }
-    if (final.state !== 'succeeded') {
-      final = await state.api.job(job.id);
+    if (!cached && !TERMINAL.includes(job.state)) {
+      final = await state.api.follow(job.id, showJob);
       showJob(final);
     }
     if (final.state === 'succeeded') {
@@ -247,8 +244,6 @@ async function loadResult(id) {
 }
 
 // ------------------------------------------------------------------------------------------------ tradeoff
-const TERMINAL = ['succeeded', 'failed', 'cancelled'];
-const sleep = (ms) => new Promise((resolve) => { setTimeout(resolve, ms); });
 
 function tradeoffKey() {
   return JSON.stringify([state.envmapId, currentBrdf()]);
@@ -283,10 +278,12 @@ async function runTradeoff() {
   try {
     const { tradeoff } = await state.api.tradeoff({ envmap: state.envmapId, brdf: currentBrdf(), rows: 16 });
     let t = tradeoff;
-    const started = performance.now();
-    while (!TERMINAL.includes(t.state)) {
-      $('tradeoff-status').textContent = `${t.state} — ${((performance.now() - started) / 1000).toFixed(0)} s`;
-      await sleep(500);
+    if (!TERMINAL.includes(t.state)) {
+      const started = performance.now();
+      await state.api.follow(t.id, (job) => {
+        $('tradeoff-status').textContent = `${job.state}${job.stage ? ` — ${job.stage}` : ''} `
+          + `${Math.round(100 * (job.progress || 0))} % — ${((performance.now() - started) / 1000).toFixed(0)} s`;
+      });
       t = await state.api.getTradeoff(t.id);
     }
     if (t.state !== 'succeeded') {
@@ -312,13 +309,14 @@ async function runScene() {
     let pub = await state.api.scene(body);
     state.scene = pub;
     await showScene($('scene-plan'), pub, state.api);
-    while (!TERMINAL.includes(pub.state)) {
-      await sleep(500);
+    if (!TERMINAL.includes(pub.state)) {
+      await state.api.follow(pub.id, (job) => {
+        $('scene-status').textContent = `${job.state}${job.stage ? ` — ${job.stage}` : ''} `
+          + `${Math.round(100 * (job.progress || 0))} %`;
+      });
       pub = await state.api.getScene(pub.id);
       state.scene = pub;
-      if (pub.plan || TERMINAL.includes(pub.state)) {
-        await showScene($('scene-plan'), pub, state.api);
-      }
+      $('scene-status').textContent = '';
     }
     await showScene($('scene-plan'), pub, state.api);
     if (pub.state !== 'succeeded') {
