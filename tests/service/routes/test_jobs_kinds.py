@@ -117,6 +117,12 @@ def test_each_kind_streams_progress_to_the_end(slow: dict[str, Any], http: httpx
     assert http.get(f"{resource}/{job_id}").json()["state"] == "succeeded"
     again = [(e.event, json.loads(e.data)["state"]) for e in events(http, f"{resource}/{job_id}/events")]
     assert again == [("job", "succeeded"), ("end", "succeeded")]
+    assert_problem(http.delete(f"/jobs/{job_id}"), 409, "succeeded")
+    # one table, but each kind's own routes know only their kind
+    for other in {"/shrms", "/tradeoffs", "/scenes"} - {KINDS[kind][0]}:
+        assert_problem(http.get(f"{other}/{job_id}"), 404, job_id)
+    assert kind in {j["kind"] for j in http.get("/jobs", params={"kind": kind}).json()["items"]}
+    assert job_id not in {j["id"] for j in http.get("/jobs", params={"kind": "none"}).json()["items"]}
 
 
 def no_result(slow: dict[str, Any], http: httpx.Client, kind: str, job_id: str) -> None:

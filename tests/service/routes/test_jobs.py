@@ -7,7 +7,7 @@ import pytest
 
 from relight.client.sdk import RelightClient
 
-from .support import assert_healthy, assert_problem
+from ..support import assert_healthy, assert_problem
 
 pytestmark = pytest.mark.timeout(120)
 UNKNOWN = "f" * 64
@@ -16,9 +16,11 @@ UNKNOWN = "f" * 64
 def test_unknown_ids_are_404(http: httpx.Client) -> None:
     for path in (f"/jobs/{UNKNOWN}", f"/jobs/{UNKNOWN}/events", f"/shrms/{UNKNOWN}",
                  f"/shrms/{UNKNOWN}/coefficients.exr", f"/shrms/{UNKNOWN}/coefficients.bin",
-                 f"/shrms/{UNKNOWN}/reflection.exr", "/no/such/route"):
+                 f"/shrms/{UNKNOWN}/reflection.exr", f"/tradeoffs/{UNKNOWN}/events", f"/scenes/{UNKNOWN}/events",
+                 "/no/such/route"):
         assert_problem(http.get(path), 404)
-    assert_problem(http.delete(f"/jobs/{UNKNOWN}"), 404, UNKNOWN)
+    for path in (f"/jobs/{UNKNOWN}", f"/tradeoffs/{UNKNOWN}", f"/scenes/{UNKNOWN}"):
+        assert_problem(http.delete(path), 404, UNKNOWN)
     assert_problem(http.post("/shrms", json={"envmap": UNKNOWN, "brdf": "phong:s=8"}), 404, UNKNOWN)
     assert_problem(http.post("/plan", json={"envmap": UNKNOWN, "brdf": "phong:s=8"}), 404, UNKNOWN)
     assert_healthy(http)

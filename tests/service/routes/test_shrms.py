@@ -14,7 +14,7 @@ import pytest
 from relight.client.sdk import RelightClient
 from relight.contract.models import JobPublic, JobState
 
-from .support import Server, assert_healthy, assert_problem, exr_bytes, library_map, make_envmap, read_exr
+from ..support import Server, assert_healthy, assert_problem, exr_bytes, library_map, make_envmap, read_exr
 
 pytestmark = pytest.mark.timeout(180)
 
