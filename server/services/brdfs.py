@@ -73,12 +73,21 @@ class BrdfService:
                    measured_sha256=measured_sha256)
 
         def upsert() -> tuple[Brdf, bool]:
-            with self.db.session() as s:
-                found = s.get(Brdf, brdf_id)
-                if found is not None:
-                    return found, False
-                s.add(row)
-            return row, True
+            from sqlalchemy.exc import IntegrityError
+
+            try:
+                with self.db.session() as s:
+                    found = s.get(Brdf, brdf_id)
+                    if found is not None:
+                        return found, False
+                    s.add(row)
+                return row, True
+            except IntegrityError:  # a concurrent request stored the same BRDF first
+                with self.db.session() as s:
+                    again = s.get(Brdf, brdf_id)
+                if again is None:
+                    raise
+                return again, False
 
         stored, created = await in_thread(upsert)
         pub = self._public(stored, lobe)
