@@ -19,7 +19,7 @@ from typing import Any, Final
 
 from cachetools import LRUCache
 
-from relight.client.models import JobPublic, JobState, Measurement, Orders, Prediction, ShrmCreate, parse_view
+from relight.contract.models import JobPublic, JobState, Measurement, Orders, Prediction, ShrmCreate, parse_view
 from relight.errors import InputError
 from relight.server.cluster import Cluster
 from relight.server.db import Job, Render, utcnow
