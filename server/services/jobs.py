@@ -409,6 +409,12 @@ class JobService:
         q = self.hub.subscribe(job_id)
         try:
             current = await self.get(job_id)  # subscribed first: nothing is missed between the two
+            live = self._snapshots.get(job_id)
+            if live is not None and live.state in ACTIVE_STATES:
+                # the last update published: what was queued meanwhile is older (progress never goes back)
+                current = live
+                while not q.empty():
+                    q.get_nowait()
             yield "job", current
             if current.state.terminal:
                 yield "end", current
