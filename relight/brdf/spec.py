@@ -10,7 +10,8 @@ String grammar (whitespace around tokens is ignored)::
 e.g. ``lambert``, ``phong:s=32``, ``microfacet:sigma=0.2``, ``torrance-sparrow:alpha=0.2,fresnel=none``,
 ``ggx:alpha=0.3,fresnel=schlick,f0=0.04``, ``blinn-phong:s=64``, ``lafortune:preset=housepaint-blue``,
 ``ward:alpha=0.1,rho_s=0.05,rho_d=0.5``, ``oren-nayar:sigma=0.3``, ``kajiya-kay:s=32``,
-``merl:gold.binary``, ``measured:table.npz``, ``lobe1d:lobe.json``, ``lambert:albedo=0.5+phong:s=64``,
+``ggx-ld:roughness=0.3`` (the engines' split-sum prefilter lobe), ``merl:gold.binary``, ``measured:table.npz``,
+``lobe1d:lobe.json``, ``lambert:albedo=0.5+phong:s=64``,
 ``vmf:sigma=0.1`` (a normalised spherical Gaussian, sigma in radians), ``gaussian-lobes:fit.json`` (a fitted or
 hand-written Gaussian-lobe material, ``relight.brdf.gaussian_lobes``).
 Anisotropic forms (seed 003; ``relight.brdf.anisotropic``, tangent-frame BRDFs):
@@ -60,6 +61,7 @@ from relight.brdf.models import (
     TorranceSparrow,
     WardIsotropic,
 )
+from relight.brdf.splitsum import GGXSplitSum
 from relight.brdf.vmf import VonMisesFisher
 from relight.errors import InputError
 
@@ -88,6 +90,7 @@ _KEYS: dict[str, dict[str, str]] = {
     "ashikhmin-shirley": {"nu": "number", "nv": "number", "rs": "color", "rd": "color"},
     "oren-nayar": {"sigma": "number", "albedo": "color"},
     "kajiya-kay": {"s": "number"},
+    "ggx-ld": {"roughness": "number"},
     "merl": {"path": "path", "lookup": "word"},
     "measured": {"path": "path"},
     "vmf": {"sigma": "number", "weight": "color"},
@@ -124,6 +127,7 @@ def _build(kind: str, kw: dict[str, Any]) -> Lobe | FrameBRDF:
         "ward": WardIsotropic,
         "oren-nayar": OrenNayar,
         "kajiya-kay": KajiyaKay,
+        "ggx-ld": GGXSplitSum,
         "merl": MERLBRDF,
         "vmf": VonMisesFisher,
     }

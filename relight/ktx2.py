@@ -1,0 +1,168 @@
+"""KTX 2.0 containers for prefiltered cube chains, written from the Khronos KTX 2.0 specification.
+
+No KTX library is installable here (pyktx is source-only, libktx is not packaged), so the container is written
+directly: the 12-byte identifier, the header, the index, the level index (level 0 first), a Basic Data Format
+Descriptor, sorted key/value data, then the mip levels from the smallest to the largest, each aligned to
+``lcm(texel block size, 4)`` (spec §3.9). Only uncompressed ``VK_FORMAT_R16G16B16A16_SFLOAT`` (vkFormat 97) is
+written: 8-byte texels, alpha 1. Cube maps have ``faceCount = 6`` and faces in the Vulkan / OpenGL order
++X, -X, +Y, -Y, +Z, -Z with the OpenGL face orientation (docs/conventions.md), which is what ``relight.envmap``'s
+cube functions use; KTX2 has no orientation key for cube maps.
+
+Key/value entries other than ``KTXwriter`` are JSON (UTF-8, NUL-terminated) under ``relight.*`` keys.
+:func:`read_ktx2` parses what :func:`write_ktx2` writes (for tests and tools); the independent check is the npm
+``ktx-parse`` reader, which re-serialises these files byte for byte (tests/relight/test_ktx2.py).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from relight.errors import InputError
+
+IDENTIFIER = bytes([0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A])
+VK_FORMAT_R16G16B16A16_SFLOAT = 97
+_HEADER = struct.Struct("<9I4I2Q")  # header (9 x u32) + index (4 x u32, 2 x u64)
+_LEVEL = struct.Struct("<3Q")
+_TEXEL_BYTES = 8
+#: Khronos Data Format: colour model RGBSDA, primaries BT.709, linear transfer; sample qualifiers float | signed.
+_KHR_DF_MODEL_RGBSDA = 1
+_KHR_DF_PRIMARIES_BT709 = 1
+_KHR_DF_TRANSFER_LINEAR = 1
+_KHR_DF_SAMPLE_FLOAT_SIGNED = 0x80 | 0x40
+_CHANNELS = (0, 1, 2, 15)  # R, G, B, A channel ids
+_ONE_F32_BITS = 0x3F800000  # 1.0f: sampleUpper of a float channel; sampleLower is -1.0f
+_MINUS_ONE_F32_BITS = -0x40800000  # 0xBF800000 as a signed 32-bit integer (the field is signed for signed samples)
+HALF_MAX = 65504.0
+
+
+def _dfd_rgba16f() -> bytes:
+    samples = b"".join(
+        struct.pack("<HBB4Bii", 16 * i, 15, ch | _KHR_DF_SAMPLE_FLOAT_SIGNED, 0, 0, 0, 0, _MINUS_ONE_F32_BITS,
+                    _ONE_F32_BITS)
+        for i, ch in enumerate(_CHANNELS)
+    )
+    block_size = 24 + len(samples)
+    block = struct.pack("<HHHH4B4B8B", 0, 0, 2, block_size, _KHR_DF_MODEL_RGBSDA, _KHR_DF_PRIMARIES_BT709,
+                        _KHR_DF_TRANSFER_LINEAR, 0, 0, 0, 0, 0, _TEXEL_BYTES, 0, 0, 0, 0, 0, 0, 0) + samples
+    return struct.pack("<I", 4 + len(block)) + block
+
+
+def _kvd(entries: Mapping[str, bytes]) -> bytes:
+    out = bytearray()
+    for key in sorted(entries):
+        if "\x00" in key or not key:
+            raise InputError(f"KTX2 keys must be non-empty without NUL, got {key!r}")
+        payload = key.encode("utf-8") + b"\x00" + entries[key]
+        out += struct.pack("<I", len(payload)) + payload + b"\x00" * (-len(payload) % 4)
+    return bytes(out)
+
+
+def to_half_rgba(faces: NDArray[np.floating]) -> tuple[NDArray[np.float16], int]:
+    """(..., 3) linear RGB to (..., 4) float16 with alpha 1, clamping to the finite half range; also the count of
+    clamped values (a float16 texel cannot hold more than 65504)."""
+    rgb = np.asarray(faces, dtype=np.float64)
+    if not np.all(np.isfinite(rgb)):
+        raise InputError("cube faces hold non-finite values")
+    clamped = int(np.count_nonzero(np.abs(rgb) > HALF_MAX))
+    out = np.ones(rgb.shape[:-1] + (4,), dtype=np.float16)
+    out[..., :3] = np.clip(rgb, -HALF_MAX, HALF_MAX).astype(np.float16)
+    return out, clamped
+
+
+def write_ktx2(levels: Sequence[NDArray[np.floating]], metadata: Mapping[str, Any] | None = None,
+               *, writer: str = "relight") -> bytes:
+    """A cube-map KTX2 file from mip levels ``levels[i]`` of shape (6, s_i, s_i, 3), s_i = s_0 >> i.
+
+    ``metadata`` entries are stored as JSON under ``relight.<key>``. Values are converted to float16 (clamped).
+    """
+    if not levels:
+        raise InputError("a KTX2 chain needs at least one level")
+    size = int(np.asarray(levels[0]).shape[1])
+    payloads: list[bytes] = []
+    for i, lv in enumerate(levels):
+        arr = np.asarray(lv)
+        want = (6, max(size >> i, 1), max(size >> i, 1), 3)
+        if arr.shape != want:
+            raise InputError(f"level {i} must have shape {want}, got {arr.shape}")
+        half, _ = to_half_rgba(arr)
+        payloads.append(half.astype("<f2").tobytes())
+    entries = {"KTXwriter": writer.encode("utf-8") + b"\x00"}
+    for key, value in (metadata or {}).items():
+        entries[f"relight.{key}"] = json.dumps(value, sort_keys=True).encode("utf-8") + b"\x00"
+    dfd = _dfd_rgba16f()
+    kvd = _kvd(entries)
+    n = len(payloads)
+    dfd_offset = len(IDENTIFIER) + _HEADER.size + n * _LEVEL.size
+    kvd_offset = dfd_offset + len(dfd)
+    align = math.lcm(_TEXEL_BYTES, 4)
+    offsets = [0] * n
+    body = bytearray()
+    cursor = kvd_offset + len(kvd)
+    for i in range(n - 1, -1, -1):  # smallest level first (spec §3.9)
+        pad = -cursor % align
+        body += b"\x00" * pad
+        cursor += pad
+        offsets[i] = cursor
+        body += payloads[i]
+        cursor += len(payloads[i])
+    header = _HEADER.pack(VK_FORMAT_R16G16B16A16_SFLOAT, 2, size, size, 0, 0, 6, n, 0,
+                          dfd_offset, len(dfd), kvd_offset, len(kvd), 0, 0)
+    index = b"".join(_LEVEL.pack(offsets[i], len(p), len(p)) for i, p in enumerate(payloads))
+    return IDENTIFIER + header + index + dfd + kvd + bytes(body)
+
+
+@dataclass(frozen=True)
+class Ktx2Cube:
+    """What :func:`read_ktx2` returns: float32 levels (6, s, s, 4) and the decoded key/value data."""
+
+    vk_format: int
+    size: int
+    levels: list[NDArray[np.float32]]
+    metadata: dict[str, Any]
+    writer: str
+
+
+def read_ktx2(data: bytes) -> Ktx2Cube:
+    """Parse an uncompressed RGBA16F cube-map KTX2 file (the form :func:`write_ktx2` writes)."""
+    if data[:12] != IDENTIFIER:
+        raise InputError("not a KTX 2.0 file (identifier mismatch)")
+    if len(data) < 12 + _HEADER.size:
+        raise InputError("KTX2 file is truncated in its header")
+    (vk, type_size, width, height, depth, layers, faces, n, scheme, dfd_off, dfd_len, kvd_off, kvd_len,
+     _sgd_off, _sgd_len) = _HEADER.unpack_from(data, 12)
+    if vk != VK_FORMAT_R16G16B16A16_SFLOAT or type_size != 2 or faces != 6 or scheme != 0:
+        raise InputError(f"only uncompressed RGBA16F cube maps are read here (vkFormat {vk}, faces {faces}, "
+                         f"supercompression {scheme})")
+    if width != height or depth != 0 or layers != 0 or not 1 <= n <= 32:
+        raise InputError(f"unexpected cube geometry {width}x{height}x{depth}, {layers} layers, {n} levels")
+    levels: list[NDArray[np.float32]] = []
+    for i in range(n):
+        off, length, _ = _LEVEL.unpack_from(data, 12 + _HEADER.size + i * _LEVEL.size)
+        s = max(width >> i, 1)
+        if length != 6 * s * s * _TEXEL_BYTES or off + length > len(data):
+            raise InputError(f"level {i} has {length} bytes at {off}; expected {6 * s * s * _TEXEL_BYTES}")
+        arr = np.frombuffer(data, dtype="<f2", count=6 * s * s * 4, offset=off)
+        levels.append(arr.astype(np.float32).reshape(6, s, s, 4))
+    meta: dict[str, Any] = {}
+    writer = ""
+    pos, end = kvd_off, kvd_off + kvd_len
+    while pos < end:
+        (length,) = struct.unpack_from("<I", data, pos)
+        entry = data[pos + 4:pos + 4 + length]
+        key, _, value = entry.partition(b"\x00")
+        text = value.rstrip(b"\x00").decode("utf-8")
+        if key == b"KTXwriter":
+            writer = text
+        elif key.startswith(b"relight."):
+            meta[key.decode("utf-8")[len("relight."):]] = json.loads(text)
+        pos += 4 + length + (-length % 4)
+    del dfd_off, dfd_len
+    return Ktx2Cube(vk_format=vk, size=width, levels=levels, metadata=meta, writer=writer)
