@@ -91,7 +91,7 @@ class ChainLevel:
     bound_rms: float  # App. B's conservative bound of the SH part (relative to the whole level), 0 when sampled
     seconds: float
     near_angle: float  # split levels: the angle (radians) up to which the lobe is summed over pixels
-    faces: FloatArray = field(repr=False)
+    faces: NDArray[np.float32] = field(repr=False)
 
 
 @dataclass(frozen=True)
@@ -223,7 +223,7 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
     timings["lighting_projection"] = time.perf_counter() - t1
 
     out: list[ChainLevel] = []
-    for i, (r, near, sh_lobe, theta1, f_rho) in enumerate(plans):
+    for i, (r, near_lobe, sh_lobe, theta1, f_rho) in enumerate(plans):
         t = time.perf_counter()
         s = size >> i
         dirs = cube_face_dirs(s).reshape(-1, 3)
@@ -231,7 +231,7 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
         order: int | None = None
         rms = bound = 0.0
         method: Method = "sample"
-        if near is None and sh_lobe is None:
+        if near_lobe is None and sh_lobe is None:
             faces = sample_latlong(np.asarray(pixels, dtype=np.float64)[None], dirs)[:, 0]
         if sh_lobe is not None and lighting is not None:
             spectrum = radial_transfer(sh_lobe, f_rho)
@@ -245,8 +245,8 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
             rms = math.sqrt(max(choice.eps_min_of_errors, 0.0))
             bound = math.sqrt(max(choice.eps_appendix_b, 0.0))
             method = "sh"
-        if near is not None:
-            faces = faces + angular_convolution(pixels, near, dirs, theta1)
+        if near_lobe is not None:
+            faces = faces + angular_convolution(pixels, near_lobe, dirs, theta1)
             method = "split"
         out.append(ChainLevel(level=i, size=s, roughness=r, method=method, order=order, predicted_rms=rms,
                               bound_rms=bound, seconds=time.perf_counter() - t, near_angle=theta1,
