@@ -12,7 +12,8 @@ Better than the paper's trust-region fit of all 5K parameters (~10 min per BRDF 
 * **Continuation**: theta_o = 0 first (mu = 0 by symmetry, several widths), then each elevation warm-started from
   the previous one, plus restarts with dead lobes re-seeded at the residual's peak and a fresh start; the best wins.
 * **Canonical order**: widest lobe first at theta_o = 0; afterwards each elevation's lobes are matched to the previous
-  elevation's (``scipy.optimize.linear_sum_assignment`` on the parameter distance), so interpolating between
+  elevation's: for K <= 5 the permutation whose interpolation with the previous elevation fits the mid-elevation
+  slice best, else ``scipy.optimize.linear_sum_assignment`` on the parameter distance; so interpolating between
   neighbouring elevations blends the same lobe. Near-duplicate lobes are merged; a lobe with no weight takes the
   (mu, sigma) of the same lobe at the nearest elevation where it lives (interpolation then only fades it).
 * **More lobes only where needed** (``max_lobes`` > K): at elevations whose error exceeds ``refine_above`` a lobe is
@@ -23,6 +24,7 @@ Better than the paper's trust-region fit of all 5K parameters (~10 min per BRDF 
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass
@@ -53,6 +55,8 @@ MERGE_TOL = 0.05
 #: The warm-started solution is kept unless another start lowers the cost by more than this fraction: switching
 #: basins between neighbouring elevations makes interpolated parameters blend unrelated lobes.
 CONTINUATION_SLACK = 0.02
+#: Up to this many lobes the order at each elevation is the permutation that fits the mid-elevation best (5! = 120).
+MAX_PERMUTED_LOBES = 5
 #: A lobe with less than this fraction of the total luminance weight is dead.
 DEAD_FRACTION = 1e-6
 
@@ -365,6 +369,10 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
             order = np.lexsort((mu_full, -s_full - 1e3 * (w_full.sum(axis=1) > 0)))
         else:
             order = _match(mus[i - 1], ss[i - 1], ws[i - 1].sum(axis=1), mu_full, s_full, w_full.sum(axis=1))
+            if k_max <= MAX_PERMUTED_LOBES:
+                mid_t, mid_sq = _slice_at(brdf, grid, 0.5 * float(thetas[i - 1] + th))
+                order = _best_permutation(local, mid_sq, mid_t, (mus[i - 1], ss[i - 1], ws[i - 1]),
+                                          (mu_full, s_full, w_full), order)
         mus[i], ss[i], ws[i] = mu_full[order], s_full[order], w_full[order]
         errors[i] = _error(local, sq, t, mus[i], ss[i], ws[i])
         g_below = _basis(local, mus[i], ss[i])[0] @ ws[i]
@@ -372,6 +380,8 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
         tot_fit = float(grid.weights @ g_below.sum(axis=1))
         leak[i] = float(grid.weights @ np.where(z <= 0.0, g_below.sum(axis=1), 0.0)) / tot_fit if tot_fit else 0.0
     _pin_dead(mus, ss, ws)
+    if thetas[0] == 0.0:
+        mus[0] = 0.0  # mu = 0 at normal view by symmetry, dead lobes included (they only fade in from there)
     mid = _mid_errors(brdf, grid, thetas, mus, ss, ws)
     sigma = np.exp(ss)
     report: dict[str, Any] = {
@@ -398,6 +408,35 @@ def _brdf_spec(brdf: Any) -> Any:
         return brdf.spec()
     except Exception:  # noqa: BLE001 - an unsaved table or a callable lobe has no spec; the report says so
         return None
+
+
+def _slice_at(brdf: Any, grid: SliceGrid, theta: float) -> tuple[FloatArray, FloatArray]:
+    t, valid = transfer_slice(brdf, grid, theta)
+    return (np.repeat(t, 3, axis=1) if t.shape[1] == 1 else t), np.sqrt(grid.weights * valid)
+
+
+def _pinned_mid(a: tuple[FloatArray, FloatArray, FloatArray], b: tuple[FloatArray, FloatArray, FloatArray]
+                ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Parameters half-way between two elevations, a dead lobe taking its live partner's (mu, sigma) first."""
+    (ma, sa, wa), (mb, sb, wb) = a, b
+    dead_a = wa.sum(axis=1) <= 0.0
+    dead_b = wb.sum(axis=1) <= 0.0
+    ma, sa = np.where(dead_a, mb, ma), np.where(dead_a, sb, sa)
+    mb, sb = np.where(dead_b, ma, mb), np.where(dead_b, sa, sb)
+    return 0.5 * (ma + mb), np.log(0.5 * (np.exp(sa) + np.exp(sb))), 0.5 * (wa + wb)
+
+
+def _best_permutation(local: FloatArray, sq: FloatArray, t: FloatArray, prev: tuple[FloatArray, FloatArray, FloatArray],
+                      cur: tuple[FloatArray, FloatArray, FloatArray], start: NDArray[np.intp]) -> NDArray[np.intp]:
+    """The order of this elevation's lobes whose interpolation with the previous elevation fits the mid-elevation
+    slice best (every permutation tried; ``start``, the parameter-distance matching, wins ties)."""
+    best, best_err = start, _error(local, sq, t, *_pinned_mid(prev, (cur[0][start], cur[1][start], cur[2][start])))
+    for perm in itertools.permutations(range(start.size)):
+        p = np.asarray(perm, dtype=np.intp)
+        e = _error(local, sq, t, *_pinned_mid(prev, (cur[0][p], cur[1][p], cur[2][p])))
+        if e < best_err * (1.0 - 1e-9):
+            best, best_err = p, e
+    return best
 
 
 def _pin_dead(mus: FloatArray, ss: FloatArray, ws: FloatArray) -> None:
