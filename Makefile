@@ -62,6 +62,7 @@ bench: $(STAMP) web/node_modules/.installed
 	$(BIN)/python bench/table5.py
 	$(BIN)/python bench/service.py
 	$(BIN)/python bench/viewer.py
+	$(BIN)/python bench/startup.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache web/node_modules

@@ -5,7 +5,11 @@
     relight compare A.exr B.exr [--json]
     relight info ENVMAP
 
-Errors: exit status 2 and one clear line on stderr. Further commands register themselves with a
+Errors: exit status 2 and one clear line on stderr.
+
+Start-up: a small job's process is mostly imports (issue 11, bench/startup.py), so nothing heavy is imported at
+module level here, and a run of one of the four commands above does not load the other commands' modules at all
+(:func:`build_parser` with ``argv``). Further commands register themselves with a
 ``register(subparsers)`` function: the core's own (SHRM rendering, scene planning) are listed in
 ``COMMAND_PROVIDERS``; every other package's (``relight serve`` from ``relight.server.cli``, ``relight worker`` from
 ``relight.worker.cli``, the client's ``upload``/``submit``/``jobs``) are entry points of the group
@@ -22,11 +26,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from relight.brdf.base import RadialLobe
 from relight.errors import InputError, RelightError
-from relight.reference import DEFAULT_TRUNCATION
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -35,6 +35,8 @@ COMMAND_PROVIDERS = ["relight.cli_shrm", "relight.cli_plan", "relight.cli_factor
                      "relight.cli_sg", "relight.cli_shtable", "relight.cli_export"]
 #: The entry point group through which other packages add subcommands (value ``module:register``).
 ENTRY_POINT_GROUP = "relight.commands"
+#: The commands this module defines itself (a run of one of them loads no provider).
+CORE_COMMANDS = ("prefilter", "reference", "compare", "info")
 
 
 def _parse_order(text: str) -> tuple[int, int | None]:
@@ -56,6 +58,9 @@ def _load_env(path: str) -> Any:
 
 
 def cmd_prefilter(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from relight.brdf.base import RadialLobe
     from relight.brdf.spec import parse_brdf
     from relight.envmap.exr import write_exr
     from relight.prefilter import prefilter_radial
@@ -88,6 +93,9 @@ def cmd_prefilter(args: argparse.Namespace) -> int:
 
 
 def cmd_reference(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from relight.brdf.base import RadialLobe
     from relight.brdf.spec import parse_brdf
     from relight.envmap.exr import write_exr
     from relight.reference import reference_radial
@@ -110,6 +118,8 @@ def cmd_reference(args: argparse.Namespace) -> int:
 
 
 def _read_map(path: str) -> Any:
+    import numpy as np
+
     from relight.envmap.environment import read_image
 
     pixels, _ = read_image(path)
@@ -134,6 +144,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from relight.envmap.environment import read_envmap
     from relight.prefilter import project_lighting
 
@@ -169,7 +181,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The ``relight`` parser with every command; or, when ``argv`` names one of :data:`CORE_COMMANDS`, with the
+    core's commands only (the providers and entry points are not imported: a small job starts faster)."""
+    from relight.reference import DEFAULT_TRUNCATION
+
     p = argparse.ArgumentParser(prog="relight", description=__doc__.split("\n\n")[0] if __doc__ else None)
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -206,11 +222,18 @@ def build_parser() -> argparse.ArgumentParser:
     inf.add_argument("--json", action="store_true")
     inf.set_defaults(func=cmd_info)
 
+    if argv is not None and _command(argv) in CORE_COMMANDS:
+        return p
     for name in COMMAND_PROVIDERS:
         importlib.import_module(name).register(sub)
     for register in _entry_point_providers():
         register(sub)
     return p
+
+
+def _command(argv: Sequence[str]) -> str | None:
+    """The subcommand ``argv`` names: its first word that is not an option (the top level has only ``-h``)."""
+    return next((a for a in argv if not a.startswith("-")), None)
 
 
 def _entry_point_providers() -> list[Callable[[Any], None]]:
@@ -226,8 +249,8 @@ def _entry_point_providers() -> list[Callable[[Any], None]]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
     try:
         code: int = args.func(args)
         return code

@@ -25,7 +25,6 @@ signals), never by a band-limited analysis that folds a sun into low orders (FAC
 from __future__ import annotations
 
 import functools
-import os
 from collections.abc import Iterator
 from typing import Literal
 
@@ -34,13 +33,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.conventions import check_latlong_shape, phi0, ring_thetas
+from relight.settings import SETTINGS, limit_blas_threads
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 Backend = Literal["ducc0", "numpy"]
 
-#: Threads ducc0 may use (RELIGHT_THREADS; default 1 — do not mix thread pools, FACTS.md).
-NTHREADS = int(os.environ.get("RELIGHT_THREADS", "1"))
+#: Threads ducc0 may use (RELIGHT_THREADS, :mod:`relight.settings`); BLAS is limited to the same count here, once
+#: NumPy has loaded it (do not run two thread pools at their own defaults, docs/facts.md).
+NTHREADS = SETTINGS.threads
+limit_blas_threads()
 
 # Scaled recursion: mantissas are renormalised by 2^-600 once they exceed 2^600 (well inside float64 range).
 _BIG = 2.0**600

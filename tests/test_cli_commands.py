@@ -9,7 +9,9 @@ import subprocess
 import sys
 import types
 from importlib.metadata import entry_points
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 from relight import cli
@@ -82,3 +84,23 @@ def test_registering_commands_loads_no_service_library() -> None:
             f"print(' '.join(m for m in {heavy!r} if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "", f"loaded while registering commands: {out}"
+
+
+def test_a_core_command_loads_no_other_command(tmp_path: Path) -> None:
+    """``relight prefilter`` on an EXR imports neither the other commands' modules nor what only they need (SciPy,
+    Pillow, the service libraries): what keeps a small job's process near its import floor (bench/startup.py)."""
+    from relight.envmap.exr import write_exr
+
+    src = tmp_path / "sky.exr"
+    rng = np.random.default_rng(3)
+    write_exr(src, (0.5 + rng.random((16, 32, 3))).astype(np.float32))
+    code = ("import sys; from relight import cli; "
+            f"code = cli.main(['prefilter', {str(src)!r}, '--brdf', 'phong:s=8', '--epsilon', '0.05', "
+            f"'--out', {str(tmp_path / 'out.exr')!r}]); "
+            "mods = ('scipy', 'PIL', 'httpx', 'pydantic', 'fastapi', 'distributed', 'relight.cli_shrm', "
+            "'relight.cli_plan', 'relight.client', 'relight.server', 'relight.worker', 'relight.mesh'); "
+            "print(code, ' '.join(m for m in mods if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    status, *loaded = out.strip().splitlines()[-1].split(" ")
+    assert status == "0"
+    assert loaded == [], f"relight prefilter loaded {loaded}"

@@ -26,7 +26,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import special
 
 from relight.brdf.base import Center, FloatArray, RadialLobe
 from relight.errors import InputError
@@ -64,6 +63,8 @@ def vmf(t: NDArray[np.floating], kappa: NDArray[np.floating] | float) -> FloatAr
 
 def vmf_transfer(kappa: float, lmax: int) -> FloatArray:
     """``Lambda_l rho_l = I_{l+1/2}(kappa) / I_{1/2}(kappa)`` for l = 0..lmax (1 at l = 0), shape (lmax+1,)."""
+    from scipy import special  # here, not at the top: parse_brdf loads this module for every CLI run
+
     if lmax < 0:
         raise ValueError(f"lmax must be >= 0, got {lmax}")
     k = float(kappa)

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.conventions import check_latlong_shape
-from relight.envmap import exr, ldr, rgbe
+from relight.envmap import exr, rgbe
 from relight.envmap.cubemap import (
     CUBE_LAYOUTS,
     FACE_NAMES,
@@ -86,6 +86,8 @@ def _decode(src: Source, hdr: ImageHeader) -> F32:
     elif hdr.format == "hdr":
         rgb = rgbe.decode(buf, rgbe.parse_header(buf))
     else:
+        from relight.envmap import ldr  # Pillow loads only for PNG / JPEG (an EXR job's start-up skips it)
+
         rgb = ldr.decode(buf, hdr)
     if rgb.shape != (hdr.height, hdr.width, 3):
         raise InputError(f"decoded image has shape {rgb.shape}, but its header says {hdr.width} x {hdr.height}")

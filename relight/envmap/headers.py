@@ -13,7 +13,7 @@ import io
 import os
 from typing import IO, Final
 
-from relight.envmap import exr, ldr, rgbe
+from relight.envmap import exr, rgbe
 from relight.envmap.formats import ACCEPTED, ImageHeader, NeedMoreData, Source, sniff
 from relight.errors import InputError
 
@@ -45,6 +45,8 @@ def probe_bytes(buf: bytes) -> ImageHeader:
         raise InputError("empty file (0 bytes): not an image")
     fmt = _sniff_or_raise(buf)
     if fmt in ("png", "jpeg"):
+        from relight.envmap import ldr  # Pillow loads only for PNG / JPEG (an EXR job's start-up skips it)
+
         return ldr.read_header(io.BytesIO(buf), fmt)
     try:
         return _parse(buf, fmt, complete=True)
@@ -59,6 +61,8 @@ def _probe_file(fh: IO[bytes], path: str) -> ImageHeader:
         raise InputError("empty file (0 bytes): not an image")
     fmt = _sniff_or_raise(buf)
     if fmt in ("png", "jpeg"):
+        from relight.envmap import ldr  # Pillow loads only for PNG / JPEG (an EXR job's start-up skips it)
+
         fh.seek(0)
         return ldr.read_header(fh, fmt)  # Pillow reads only as far as the header
     while True:
