@@ -58,61 +58,114 @@ machines are noisy, so :class:`Calibration` keeps the in-sample ratio of predict
 
 from __future__ import annotations
 
-from relight.costmodel.angular import (
-    angular_features,
-    angular_pairs,
-    angular_view_counts,
-    angular_view_features,
-)
-from relight.costmodel.calibration import (
-    CAL_ANGULAR,
-    CAL_RADIAL,
-    CAL_SHRM,
-    CAL_VIEW,
-    DEFAULT_CONSTANTS,
-    Calibration,
-    Prediction,
-    calibrate,
-    calibration_key,
-    default_calibration,
-    fit,
-    machine_info,
-    report_stages,
-)
-from relight.costmodel.features import (
-    CHANNELS,
-    FEATURES,
-    STAGES,
-    LobePlan,
-    add_features,
-    brdf_features,
-    n_maps,
-    prefilter_report_features,
-    probe_orders,
-    projection_features,
-    radial_features,
-    radial_nodes,
-    radial_probes,
-    ringing_work,
-    shrm_features,
-    shrm_lobe_plans,
-    shrm_report_features,
-    synthesis_counts,
-    synthesis_features,
-    tabulation_points,
-    view_features,
-)
-from relight.costmodel.store import (
-    cache_dir,
-    cache_path,
-    forget,
-    load_calibration,
-    save_calibration,
-)
-from relight.costmodel.timing import (
-    integrand_eval_seconds,
-    lobe_eval_seconds,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from relight.costmodel.angular import (
+        angular_features,
+        angular_pairs,
+        angular_view_counts,
+        angular_view_features,
+    )
+    from relight.costmodel.calibration import (
+        CAL_ANGULAR,
+        CAL_RADIAL,
+        CAL_SHRM,
+        CAL_VIEW,
+        DEFAULT_CONSTANTS,
+        Calibration,
+        Prediction,
+        calibrate,
+        calibration_key,
+        default_calibration,
+        fit,
+        machine_info,
+        report_stages,
+    )
+    from relight.costmodel.features import (
+        CHANNELS,
+        FEATURES,
+        STAGES,
+        LobePlan,
+        add_features,
+        brdf_features,
+        n_maps,
+        prefilter_report_features,
+        probe_orders,
+        projection_features,
+        radial_features,
+        radial_nodes,
+        radial_probes,
+        ringing_work,
+        shrm_features,
+        shrm_lobe_plans,
+        shrm_report_features,
+        synthesis_counts,
+        synthesis_features,
+        tabulation_points,
+        view_features,
+    )
+    from relight.costmodel.store import (
+        cache_dir,
+        cache_path,
+        forget,
+        load_calibration,
+        save_calibration,
+    )
+    from relight.costmodel.timing import (
+        integrand_eval_seconds,
+        lobe_eval_seconds,
+    )
+
+#: Public name -> defining module, imported on first use (PEP 562): importing the package stays cheap.
+_EXPORTS: dict[str, str] = {
+    "CAL_ANGULAR": "calibration",
+    "CAL_RADIAL": "calibration",
+    "CAL_SHRM": "calibration",
+    "CAL_VIEW": "calibration",
+    "CHANNELS": "features",
+    "Calibration": "calibration",
+    "DEFAULT_CONSTANTS": "calibration",
+    "FEATURES": "features",
+    "LobePlan": "features",
+    "Prediction": "calibration",
+    "STAGES": "features",
+    "add_features": "features",
+    "angular_features": "angular",
+    "angular_pairs": "angular",
+    "angular_view_counts": "angular",
+    "angular_view_features": "angular",
+    "brdf_features": "features",
+    "cache_dir": "store",
+    "cache_path": "store",
+    "calibrate": "calibration",
+    "calibration_key": "calibration",
+    "default_calibration": "calibration",
+    "fit": "calibration",
+    "forget": "store",
+    "integrand_eval_seconds": "timing",
+    "load_calibration": "store",
+    "lobe_eval_seconds": "timing",
+    "machine_info": "calibration",
+    "n_maps": "features",
+    "prefilter_report_features": "features",
+    "probe_orders": "features",
+    "projection_features": "features",
+    "radial_features": "features",
+    "radial_nodes": "features",
+    "radial_probes": "features",
+    "report_stages": "calibration",
+    "ringing_work": "features",
+    "save_calibration": "store",
+    "shrm_features": "features",
+    "shrm_lobe_plans": "features",
+    "shrm_report_features": "features",
+    "synthesis_counts": "features",
+    "synthesis_features": "features",
+    "tabulation_points": "features",
+    "view_features": "features",
+}
 
 __all__ = [
     "CAL_ANGULAR",
@@ -161,3 +214,21 @@ __all__ = [
     "tabulation_points",
     "view_features",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        try:  # a submodule not imported yet (``relight.costmodel.<module>``)
+            return importlib.import_module(f"relight.costmodel.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"relight.costmodel.{name}":
+                raise
+            raise AttributeError(f"module 'relight.costmodel' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f"relight.costmodel.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

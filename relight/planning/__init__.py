@@ -18,46 +18,99 @@ The worker and the server call these; they hold no planning arithmetic of their 
 
 from __future__ import annotations
 
-from relight.planning.effects import near_threshold_distance, view_spread
-from relight.planning.execute import compute_component, irradiance_coefficients, run_plan
-from relight.planning.job import JobPlan, StoredLighting, plan_job, uses_reflection_map
-from relight.planning.lobes import representation_of
-from relight.planning.report import ScenePlan
-from relight.planning.scene import (
-    MAX_OBJECT_DISTANCE,
-    MAX_OBJECT_SIZE,
-    MAX_SCENE_OBJECTS,
-    MAX_SCENE_SIZE,
-    MAX_TIME_BUDGET_S,
-    MIN_SCENE_SIZE,
-    SHAPES,
-    Scene,
-    SceneObject,
-    load_scene,
-    scene_from_dict,
-)
-from relight.planning.scene_plan import (
-    BUDGET_LADDER,
-    SHRM_MIN_EPSILON,
-    Plan,
-    format_plan,
-    plan_for_budget,
-    plan_json,
-    plan_scene,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from relight.planning.effects import (
+        near_threshold_distance,
+        view_spread,
+    )
+    from relight.planning.execute import (
+        compute_component,
+        irradiance_coefficients,
+        run_plan,
+    )
+    from relight.planning.job import (
+        JobPlan,
+        StoredLighting,
+        plan_job,
+        uses_reflection_map,
+    )
+    from relight.planning.lobes import (
+        representation_of,
+    )
+    from relight.planning.report import (
+        ScenePlan,
+    )
+    from relight.planning.scene import (
+        MAX_OBJECT_DISTANCE,
+        MAX_OBJECT_SIZE,
+        MAX_SCENE_OBJECTS,
+        MAX_SCENE_SIZE,
+        MAX_TIME_BUDGET_S,
+        MIN_SCENE_SIZE,
+        SHAPES,
+        Scene,
+        SceneObject,
+        load_scene,
+        scene_from_dict,
+    )
+    from relight.planning.scene_plan import (
+        BUDGET_LADDER,
+        SHRM_MIN_EPSILON,
+        Plan,
+        format_plan,
+        plan_for_budget,
+        plan_json,
+        plan_scene,
+    )
+
+#: Public name -> defining module, imported on first use (PEP 562): importing the package stays cheap.
+_EXPORTS: dict[str, str] = {
+    "BUDGET_LADDER": "scene_plan",
+    "JobPlan": "job",
+    "MAX_OBJECT_DISTANCE": "scene",
+    "MAX_OBJECT_SIZE": "scene",
+    "MAX_SCENE_OBJECTS": "scene",
+    "MAX_SCENE_SIZE": "scene",
+    "MAX_TIME_BUDGET_S": "scene",
+    "MIN_SCENE_SIZE": "scene",
+    "Plan": "scene_plan",
+    "SHAPES": "scene",
+    "SHRM_MIN_EPSILON": "scene_plan",
+    "Scene": "scene",
+    "SceneObject": "scene",
+    "ScenePlan": "report",
+    "StoredLighting": "job",
+    "compute_component": "execute",
+    "format_plan": "scene_plan",
+    "irradiance_coefficients": "execute",
+    "load_scene": "scene",
+    "near_threshold_distance": "effects",
+    "plan_for_budget": "scene_plan",
+    "plan_job": "job",
+    "plan_json": "scene_plan",
+    "plan_scene": "scene_plan",
+    "representation_of": "lobes",
+    "run_plan": "execute",
+    "scene_from_dict": "scene",
+    "uses_reflection_map": "job",
+    "view_spread": "effects",
+}
 
 __all__ = [
     "BUDGET_LADDER",
+    "JobPlan",
     "MAX_OBJECT_DISTANCE",
     "MAX_OBJECT_SIZE",
     "MAX_SCENE_OBJECTS",
     "MAX_SCENE_SIZE",
     "MAX_TIME_BUDGET_S",
     "MIN_SCENE_SIZE",
+    "Plan",
     "SHAPES",
     "SHRM_MIN_EPSILON",
-    "JobPlan",
-    "Plan",
     "Scene",
     "SceneObject",
     "ScenePlan",
@@ -77,3 +130,21 @@ __all__ = [
     "uses_reflection_map",
     "view_spread",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        try:  # a submodule not imported yet (``relight.planning.<module>``)
+            return importlib.import_module(f"relight.planning.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"relight.planning.{name}":
+                raise
+            raise AttributeError(f"module 'relight.planning' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f"relight.planning.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

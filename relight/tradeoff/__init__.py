@@ -65,31 +65,56 @@ method, :class:`TradeoffPoint`), :mod:`~relight.tradeoff.mitsuba` (the Mitsuba 3
 
 from __future__ import annotations
 
-from relight.tradeoff.plots import (
-    plot,
-    write_tradeoff,
-)
-from relight.tradeoff.points import (
-    QUICK_SECONDS,
-    REPEAT,
-    TradeoffPoint,
-    is_reflection_map,
-    pareto_flags,
-)
-from relight.tradeoff.sweeps import (
-    DEFAULT_EPSILONS,
-    DEFAULT_SHRM_EPSILONS,
-    DEFAULT_TRUNCATIONS,
-    DEFAULT_VIEW,
-    MAX_DEFAULT_SIZE,
-    Progress,
-    Tradeoff,
-    default_size,
-    sweep,
-)
-from relight.tradeoff.window import (
-    window_tradeoff,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from relight.tradeoff.plots import (
+        plot,
+        write_tradeoff,
+    )
+    from relight.tradeoff.points import (
+        QUICK_SECONDS,
+        REPEAT,
+        TradeoffPoint,
+        is_reflection_map,
+        pareto_flags,
+    )
+    from relight.tradeoff.sweeps import (
+        DEFAULT_EPSILONS,
+        DEFAULT_SHRM_EPSILONS,
+        DEFAULT_TRUNCATIONS,
+        DEFAULT_VIEW,
+        MAX_DEFAULT_SIZE,
+        Progress,
+        Tradeoff,
+        default_size,
+        sweep,
+    )
+    from relight.tradeoff.window import (
+        window_tradeoff,
+    )
+
+#: Public name -> defining module, imported on first use (PEP 562): importing the package stays cheap.
+_EXPORTS: dict[str, str] = {
+    "DEFAULT_EPSILONS": "sweeps",
+    "DEFAULT_SHRM_EPSILONS": "sweeps",
+    "DEFAULT_TRUNCATIONS": "sweeps",
+    "DEFAULT_VIEW": "sweeps",
+    "MAX_DEFAULT_SIZE": "sweeps",
+    "Progress": "sweeps",
+    "QUICK_SECONDS": "points",
+    "REPEAT": "points",
+    "Tradeoff": "sweeps",
+    "TradeoffPoint": "points",
+    "default_size": "sweeps",
+    "is_reflection_map": "points",
+    "pareto_flags": "points",
+    "plot": "plots",
+    "sweep": "sweeps",
+    "window_tradeoff": "window",
+    "write_tradeoff": "plots",
+}
 
 __all__ = [
     "DEFAULT_EPSILONS",
@@ -110,3 +135,21 @@ __all__ = [
     "window_tradeoff",
     "write_tradeoff",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        try:  # a submodule not imported yet (``relight.tradeoff.<module>``)
+            return importlib.import_module(f"relight.tradeoff.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"relight.tradeoff.{name}":
+                raise
+            raise AttributeError(f"module 'relight.tradeoff' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f"relight.tradeoff.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

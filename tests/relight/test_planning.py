@@ -306,3 +306,16 @@ def test_cli_scene_plan_and_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     assert cli.main(["scene", "plan", str(path)]) == 2
     assert "exactly one of epsilon" in capsys.readouterr().err
     costmodel.forget()
+
+
+def test_scene_schema_imports_without_the_numerical_core() -> None:
+    """The scene schema's limits are imported by the API's models (and so by the client): ``relight.planning.scene``
+    and the package's constants load without NumPy or the cost model (the package imports its modules on use)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, relight.planning as p, relight.planning.scene as s; "
+            "assert p.MAX_SCENE_OBJECTS == s.MAX_SCENE_OBJECTS; "
+            "print(sorted(m for m in ('numpy', 'relight.costmodel', 'relight.prefilter') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", (out.stdout, out.stderr[-2000:])
