@@ -27,10 +27,13 @@ def cmd_sh_table(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``relight.sh_table``'s defaults, repeated so that registering the command imports nothing numerical
+#: (tests/test_cli_shtable.py checks that they agree).
+DEFAULT_ORDER, DEFAULT_RESOLUTION, DEFAULT_LAYOUT = 4, 128, "parabolic"
+
+
 def register(subparsers: Any) -> None:
     """Add ``sh-table`` to the ``relight`` command line."""
-    from relight.sh_table import DEFAULT_LAYOUT, DEFAULT_ORDER, DEFAULT_RESOLUTION
-
     st = subparsers.add_parser("sh-table", help="per-view SH table of a BRDF's product function (seed 003)")
     st.add_argument("brdf", help="BRDF spec, e.g. 'ashikhmin-shirley:nu=48,nv=16,rs=0.05,rd=0'")
     st.add_argument("--order", type=int, default=DEFAULT_ORDER, help="SH order F: l <= F, (F+1)^2 coefficients")

@@ -53,3 +53,10 @@ def test_errors_exit_2_with_one_line(argv: list[str], message: str, tmp_path: Pa
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("relight: error:") and "\n" not in err and message in err
+
+
+def test_registration_defaults_are_the_tables() -> None:
+    from relight import cli_shtable, sh_table
+
+    assert (cli_shtable.DEFAULT_ORDER, cli_shtable.DEFAULT_RESOLUTION, cli_shtable.DEFAULT_LAYOUT) == (
+        sh_table.DEFAULT_ORDER, sh_table.DEFAULT_RESOLUTION, sh_table.DEFAULT_LAYOUT)
