@@ -41,6 +41,8 @@ from typing import Any
 
 import numpy as np
 
+from relight import indexing
+
 REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
@@ -83,10 +85,10 @@ def serve_viewer() -> tuple[str, Any]:
 
 
 def random_maps(rng: np.random.Generator, count: int, rows: int, order: int = 8) -> np.ndarray:
-    l, m = sh.lm_arrays(order)
+    l, m = indexing.healpy_lm(order)
     out = []
     for _ in range(count):
-        alm = rng.normal(size=(3, sh.n_alm(order))) + 1j * rng.normal(size=(3, sh.n_alm(order)))
+        alm = rng.normal(size=(3, indexing.healpy_size(order))) + 1j * rng.normal(size=(3, indexing.healpy_size(order)))
         alm[:, m == 0] = alm[:, m == 0].real
         out.append(np.abs(sh.synthesize(alm / (l + 1.0), order, rows)) + 0.2)
     return np.stack(out)

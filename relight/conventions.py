@@ -92,6 +92,38 @@ def dirs_to_pixel(d: NDArray[np.floating], height: int, width: int) -> tuple[Flo
     return y, x
 
 
+def bilinear_latlong(image: NDArray[np.floating], y: NDArray[np.floating], x: NDArray[np.floating]) -> FloatArray:
+    """Bilinear lookup of an (H, W, ...) lat-long image at continuous pixel coordinates (``y``, ``x``), broadcast.
+
+    Pixel centres are at integer coordinates (:func:`dirs_to_pixel`); columns wrap around in ``phi``, rows clamp
+    at the poles. Returns ``broadcast(y, x).shape + image.shape[2:]``.
+    """
+    h, w = image.shape[:2]
+    y, x = np.broadcast_arrays(np.asarray(y, dtype=np.float64), np.asarray(x, dtype=np.float64))
+    tail = (None,) * (image.ndim - 2)
+    y = np.clip(y, 0.0, h - 1.0)
+    y0 = np.clip(np.floor(y).astype(np.intp), 0, max(h - 2, 0))
+    fy = (y - y0)[(..., *tail)]
+    y1 = np.minimum(y0 + 1, h - 1)
+    x0f = np.floor(x)
+    fx = (x - x0f)[(..., *tail)]
+    x0 = np.mod(x0f.astype(np.intp), w)
+    x1 = np.mod(x0 + 1, w)
+    top = image[y0, x0] * (1.0 - fx) + image[y0, x1] * fx
+    bot = image[y1, x0] * (1.0 - fx) + image[y1, x1] * fx
+    return np.asarray(top * (1.0 - fy) + bot * fy, dtype=np.float64)
+
+
+def sample_latlong(maps: NDArray[np.floating], dirs: NDArray[np.floating]) -> FloatArray:
+    """The lat-long sampler: bilinear lookup of lat-long maps (K, H, W, C) at directions (N, 3) -> (N, K, C).
+
+    Directions map to pixel coordinates by :func:`dirs_to_pixel`; :func:`bilinear_latlong` interpolates.
+    """
+    _, h, w, _ = maps.shape
+    y, x = dirs_to_pixel(dirs, h, w)
+    return bilinear_latlong(np.moveaxis(maps, 0, 2), y, x)
+
+
 def pixel_solid_angles(height: int, width: int) -> FloatArray:
     """Exact solid angle of each row's pixels (H,): ``(2 pi / W) (cos theta_top - cos theta_bottom)``."""
     edges = np.arange(height + 1) * np.pi / height

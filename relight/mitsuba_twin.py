@@ -331,10 +331,11 @@ def sphere_from_map(latlong: NDArray[np.floating], view: NDArray[np.floating] | 
     maps and for every view map of ``relight.shrm.reflect`` / ``relight.reference_view`` (they are indexed by R
     whatever the lobe's centre), N for the N-centred map of a Lambertian lobe. Each sub-pixel of the
     :func:`relight.shrm.sphere_geometry` camera at ``size * supersample`` takes its normal N, ``R = 2 (N.V) N - V``
-    and the bilinear lookup ``relight.shrm.sample_latlong`` at its centre; the ``supersample x supersample``
+    and the bilinear lookup ``relight.conventions.sample_latlong`` at its centre; the ``supersample x supersample``
     sub-pixels of each pixel are averaged (Mitsuba's box filter averages over the pixel's area). Off the sphere: 0.
     """
-    from relight.shrm import lobe_centres, reflect_dirs, sample_latlong, sphere_geometry, unit_view
+    from relight.conventions import sample_latlong
+    from relight.shrm import lobe_centres, reflect_dirs, sphere_geometry, unit_view
 
     m = np.asarray(latlong, dtype=np.float64)
     if m.ndim != 3 or m.shape[1] != 2 * m.shape[0]:

@@ -22,7 +22,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import __version__, sh
+from relight import __version__, indexing, sh
 from relight.brdf.base import RadialLobe
 from relight.brdf.coefficients import (
     RadialSpectrum,
@@ -208,7 +208,7 @@ def prefilter_radial(
     f_b = choice.F_B
     timer.lap("order_selection")
 
-    l_idx, _ = sh.lm_arrays(f_b)
+    l_idx, _ = indexing.healpy_lm(f_b)
     factors = transfer[: f_b + 1] * window_factors(f_b, window)[:, None]  # (F_B+1, C)
     alm = sh.truncate(lighting.alm, lighting.lmax, f_b)
     b_lm = alm * factors[l_idx].T  # (3, nalm): grey lobes broadcast over RGB

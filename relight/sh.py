@@ -6,10 +6,10 @@ Conventions (``docs/conventions.md``): orthonormal complex harmonics with the Co
 the pixel-centred rings ``theta_i = (i + 1/2) pi / H`` (ducc0 geometry ``F1``); column ``j`` is at
 ``phi_j = -pi + (j + 1/2) 2 pi / W``.
 
-Coefficients of a real field are stored as ducc0 ("healpy") arrays: complex ``a_lm`` for ``0 <= m <= l <= lmax``
-at index ``m (2 lmax + 1 - m) / 2 + l`` (``alm_index``); ``a_{l,-m} = (-1)^m conj(a_lm)``. ``to_real`` /
-``from_real`` convert to the real basis (``Yr_{l,m>0} = sqrt2 (-1)^m Re Y_lm``, ``Yr_{l,m<0} = sqrt2 (-1)^m
-Im Y_{l|m|}``) stored at ``l^2 + l + m``.
+Coefficients of a real field are stored in the ``healpy`` layout of :mod:`relight.indexing` (ducc0's): complex
+``a_lm`` for ``0 <= m <= l <= lmax`` (:func:`relight.indexing.healpy_index`); ``a_{l,-m} = (-1)^m conj(a_lm)``.
+``to_real`` / ``from_real`` convert to the real basis (``Yr_{l,m>0} = sqrt2 (-1)^m Re Y_lm``, ``Yr_{l,m<0} =
+sqrt2 (-1)^m Im Y_{l|m|}``) stored in the ``full`` layout (:func:`relight.indexing.full_index`, ``l^2 + l + m``).
 
 Two implementations sit behind each call (``backend=``):
 
@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.conventions import check_latlong_shape, phi0, ring_thetas
+from relight.indexing import full_indices, full_size, healpy_index, healpy_lm, healpy_size
 from relight.settings import SETTINGS, limit_blas_threads
 
 FloatArray = NDArray[np.float64]
@@ -49,73 +50,40 @@ _BIG = 2.0**600
 _LOG_BIG = 600.0 * np.log(2.0)
 
 
-# --------------------------------------------------------------------------------------------- indexing
-def n_alm(lmax: int, mmax: int | None = None) -> int:
-    """Number of stored complex coefficients for ``0 <= m <= mmax``, ``m <= l <= lmax``."""
-    mmax = lmax if mmax is None else mmax
-    return ((mmax + 1) * (mmax + 2)) // 2 + (mmax + 1) * (lmax - mmax)
-
-
-def alm_index(l: NDArray[np.integer] | int, m: NDArray[np.integer] | int, lmax: int) -> NDArray[np.intp]:
-    """Index of ``a_lm`` (``m >= 0``) in a ducc0/healpy coefficient array of order ``lmax``."""
-    l_arr = np.asarray(l, dtype=np.intp)
-    m_arr = np.asarray(m, dtype=np.intp)
-    if np.any(m_arr < 0) or np.any(m_arr > l_arr) or np.any(l_arr > lmax):
-        raise ValueError(f"need 0 <= m <= l <= lmax={lmax}, got l={l}, m={m}")
-    return np.asarray(m_arr * (2 * lmax + 1 - m_arr) // 2 + l_arr, dtype=np.intp)
-
-
-def lm_arrays(lmax: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """(l, m) of every stored coefficient, in storage order."""
-    ls, ms = [], []
-    for m in range(lmax + 1):
-        ls.append(np.arange(m, lmax + 1))
-        ms.append(np.full(lmax + 1 - m, m))
-    return np.concatenate(ls).astype(np.intp), np.concatenate(ms).astype(np.intp)
-
-
-def lmax_of(nalm: int) -> int:
-    """Inverse of ``n_alm(lmax)`` (full triangle)."""
-    lmax = int(round((np.sqrt(8 * nalm + 1) - 3) / 2))
-    if n_alm(lmax) != nalm:
-        raise ValueError(f"{nalm} is not the size of a full coefficient triangle")
-    return lmax
-
-
 def truncate(alm: ComplexArray, lmax: int, new_lmax: int) -> ComplexArray:
     """Coefficients up to ``new_lmax <= lmax`` (leading axes kept)."""
     if new_lmax > lmax:
         raise ValueError(f"cannot truncate order {lmax} to a higher order {new_lmax}")
-    l, m = lm_arrays(new_lmax)
-    return np.ascontiguousarray(alm[..., alm_index(l, m, lmax)])
+    l, m = healpy_lm(new_lmax)
+    return np.ascontiguousarray(alm[..., healpy_index(l, m, lmax)])
 
 
 # -------------------------------------------------------------------------------- real <-> complex forms
 def to_real(alm: ComplexArray, lmax: int) -> FloatArray:
-    """Real-basis coefficients (..., (lmax+1)^2) at ``l^2 + l + m`` from complex ``a_lm`` of a real field."""
-    l, m = lm_arrays(lmax)
-    out = np.zeros(alm.shape[:-1] + ((lmax + 1) ** 2,))
+    """Real-basis coefficients (..., (lmax+1)^2), ``full`` layout, from complex ``a_lm`` (healpy) of a real field."""
+    l, m = healpy_lm(lmax)
+    out = np.zeros(alm.shape[:-1] + (full_size(lmax),))
     zero = m == 0
-    out[..., l[zero] ** 2 + l[zero]] = alm[..., zero].real
+    out[..., full_indices(l[zero], 0)] = alm[..., zero].real
     pos = ~zero
     sign = np.where(m[pos] % 2 == 0, 1.0, -1.0)
-    out[..., l[pos] ** 2 + l[pos] + m[pos]] = np.sqrt(2.0) * sign * alm[..., pos].real
-    out[..., l[pos] ** 2 + l[pos] - m[pos]] = -np.sqrt(2.0) * sign * alm[..., pos].imag
+    out[..., full_indices(l[pos], m[pos])] = np.sqrt(2.0) * sign * alm[..., pos].real
+    out[..., full_indices(l[pos], -m[pos])] = -np.sqrt(2.0) * sign * alm[..., pos].imag
     return out
 
 
 def from_real(coeffs: FloatArray, lmax: int) -> ComplexArray:
     """Inverse of ``to_real``."""
-    if coeffs.shape[-1] != (lmax + 1) ** 2:
-        raise ValueError(f"expected {(lmax + 1) ** 2} real coefficients for lmax={lmax}, got {coeffs.shape[-1]}")
-    l, m = lm_arrays(lmax)
-    out = np.zeros(coeffs.shape[:-1] + (n_alm(lmax),), dtype=np.complex128)
+    if coeffs.shape[-1] != full_size(lmax):
+        raise ValueError(f"expected {full_size(lmax)} real coefficients for lmax={lmax}, got {coeffs.shape[-1]}")
+    l, m = healpy_lm(lmax)
+    out = np.zeros(coeffs.shape[:-1] + (healpy_size(lmax),), dtype=np.complex128)
     zero = m == 0
-    out[..., zero] = coeffs[..., l[zero] ** 2 + l[zero]]
+    out[..., zero] = coeffs[..., full_indices(l[zero], 0)]
     pos = ~zero
     sign = np.where(m[pos] % 2 == 0, 1.0, -1.0)
-    re = coeffs[..., l[pos] ** 2 + l[pos] + m[pos]] * sign / np.sqrt(2.0)
-    im = -coeffs[..., l[pos] ** 2 + l[pos] - m[pos]] * sign / np.sqrt(2.0)
+    re = coeffs[..., full_indices(l[pos], m[pos])] * sign / np.sqrt(2.0)
+    im = -coeffs[..., full_indices(l[pos], -m[pos])] * sign / np.sqrt(2.0)
     out[..., pos] = re + 1j * im
     return out
 
@@ -125,7 +93,7 @@ def power_spectrum(alm: ComplexArray, lmax: int) -> FloatArray:
 
     Parseval: ``sum_l E_l`` is the field's ``int f^2 dOmega`` when the field is band-limited to ``lmax``.
     """
-    l, m = lm_arrays(lmax)
+    l, m = healpy_lm(lmax)
     e = np.abs(alm) ** 2 * np.where(m == 0, 1.0, 2.0)
     flat = e.reshape(-1, e.shape[-1])
     out = np.stack([np.bincount(l, weights=row, minlength=lmax + 1) for row in flat])
@@ -288,10 +256,10 @@ def _project_numpy(stack: FloatArray, lmax: int, ring_w: FloatArray) -> ComplexA
     m = np.arange(lmax + 1)
     spec = np.fft.fft(stack, axis=-1)[..., : lmax + 1]  # sum_j f_j e^{-2 pi i m j / W}
     g = spec * np.exp(-1j * m * phi0(w))[None, None, :] * (ring_w / w)[None, :, None]  # (C, H, M)
-    out = np.zeros((c, n_alm(lmax)), dtype=np.complex128)
+    out = np.zeros((c, healpy_size(lmax)), dtype=np.complex128)
     for l, row in enumerate(legendre_rows(lmax, ring_thetas(h))):
         mm = np.arange(l + 1)
-        out[:, alm_index(l, mm, lmax)] = np.einsum("mt,ctm->cm", row, g[:, :, : l + 1])
+        out[:, healpy_index(l, mm, lmax)] = np.einsum("mt,ctm->cm", row, g[:, :, : l + 1])
     return out
 
 
@@ -312,8 +280,8 @@ def synthesize(
     a = np.asarray(alm, dtype=np.complex128)
     chan = a.ndim == 2
     a2 = a if chan else a[None]
-    if a2.shape[-1] != n_alm(lmax):
-        raise ValueError(f"expected {n_alm(lmax)} coefficients for lmax={lmax}, got {a2.shape[-1]}")
+    if a2.shape[-1] != healpy_size(lmax):
+        raise ValueError(f"expected {healpy_size(lmax)} coefficients for lmax={lmax}, got {a2.shape[-1]}")
     if backend == "ducc0":
         # ducc0 evaluates exactly on rings with nphi < 2 lmax + 1 too (it aliases the higher m correctly).
         out = np.concatenate(
@@ -343,7 +311,7 @@ def _synthesize_numpy(alm: ComplexArray, lmax: int, height: int, width: int, fir
     cm = np.zeros((c, height, mmax + 1), dtype=np.complex128)
     for l, row in enumerate(legendre_rows(lmax, ring_thetas(height), mmax=mmax)):
         mm = np.arange(row.shape[0])
-        cm[..., : row.shape[0]] += np.einsum("mt,cm->ctm", row, alm[:, alm_index(l, mm, lmax)])
+        cm[..., : row.shape[0]] += np.einsum("mt,cm->ctm", row, alm[:, healpy_index(l, mm, lmax)])
     m = np.arange(mmax + 1)
     g = cm * np.exp(1j * m * first_phi)
     full = np.zeros((c, height, width // 2 + 1), dtype=np.complex128)

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from relight.errors import InputError
+from relight.indexing import full_block, full_size
 
 FloatArray = NDArray[np.float64]
 
@@ -153,7 +154,7 @@ def block_diagonal(blocks: list[FloatArray]) -> FloatArray:
     n = len(blocks) ** 2
     out = np.zeros(lead + (n, n))
     for l, b in enumerate(blocks):
-        out[..., l * l : (l + 1) ** 2, l * l : (l + 1) ** 2] = b
+        out[..., full_block(l), full_block(l)] = b
     return out
 
 
@@ -162,9 +163,9 @@ def rotate_coefficients(blocks: list[FloatArray], coeffs: ArrayLike) -> FloatArr
     blocks' leading shape; returns (broadcast lead, n, C)."""
     c = np.asarray(coeffs, dtype=np.float64)
     lmax = len(blocks) - 1
-    if c.ndim < 2 or c.shape[-2] != (lmax + 1) ** 2:
-        raise InputError(f"coefficients must have shape (..., {(lmax + 1) ** 2}, C) for lmax = {lmax}, got {c.shape}")
-    parts = [b @ c[..., l * l : (l + 1) ** 2, :] for l, b in enumerate(blocks)]
+    if c.ndim < 2 or c.shape[-2] != full_size(lmax):
+        raise InputError(f"coefficients must have shape (..., {full_size(lmax)}, C) for lmax = {lmax}, got {c.shape}")
+    parts = [b @ c[..., full_block(l), :] for l, b in enumerate(blocks)]
     return np.concatenate(parts, axis=-2)
 
 

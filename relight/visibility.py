@@ -38,10 +38,11 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
+from relight.conventions import dirs_to_angles
 from relight.errors import InputError
 from relight.mesh.model import TriangleMesh
 from relight.raycast import RayCaster, ray_offset
-from relight.shrm import real_harmonics, sh_angles
+from relight.shrm import real_harmonics
 
 FloatArray = NDArray[np.float64]
 Kind = Literal["visibility", "diffuse_transfer", "shadow_matrix"]
@@ -116,7 +117,7 @@ def directions(rays: int, sampling: Sampling = "fibonacci", seed: int | None = 0
 
 def sh_basis(dirs: FloatArray, order: int) -> FloatArray:
     """Real harmonics ``Yr_k(w_s)`` of the world directions, (n, (order+1)^2)."""
-    theta, phi = sh_angles(dirs)
+    theta, phi = dirs_to_angles(dirs)
     return real_harmonics(order, theta, phi)
 
 

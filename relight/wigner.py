@@ -80,7 +80,9 @@ import ducc0
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
+from relight.indexing import full_block, full_indices, full_size, healpy_lm, healpy_size
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -403,15 +405,10 @@ def rotation_matrix_zyz(alpha: float, beta: float, gamma: float) -> FloatArray:
     return np.asarray(rz(alpha) @ ry @ rz(gamma), dtype=np.float64)
 
 
-def alm_index(ell: ArrayLike, m: ArrayLike) -> NDArray[np.int64]:
-    """Index of ``a_lm`` in the full complex layout used here: ``l^2 + l + m`` (l = 0..lmax, m = -l..l)."""
-    return np.asarray(np.asarray(ell, np.int64) ** 2 + np.asarray(ell, np.int64) + np.asarray(m, np.int64))
-
-
 def _check_alm(alm: ArrayLike, lmax: int) -> ComplexArray:
     a = np.asarray(alm)
-    if a.ndim < 1 or a.shape[-1] != (lmax + 1) ** 2:
-        raise InputError(f"alm must have a trailing axis of length (lmax+1)^2 = {(lmax + 1) ** 2}, got shape {a.shape}")
+    if a.ndim < 1 or a.shape[-1] != full_size(lmax):
+        raise InputError(f"alm must have a trailing axis of length (lmax+1)^2 = {full_size(lmax)}, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InputError("alm must be finite")
     return np.asarray(a, dtype=np.complex128)
@@ -422,7 +419,7 @@ def rotate_alm(
 ) -> ComplexArray:
     """Coefficients of the actively rotated field ``f'(x) = f(R^{-1} x)``, ``R = R_z(alpha) R_y(beta) R_z(gamma)``.
 
-    ``alm`` holds any complex field's coefficients in the full layout ``alm[..., l^2 + l + m]`` (:func:`alm_index`)
+    ``alm`` holds any complex field's coefficients in the ``full`` layout of :mod:`relight.indexing` (``l^2 + l + m``)
     for the orthonormal CS-phase harmonics of the module docstring; the result is ``a'_{lm'} = sum_m D^l_{m'm}(R)
     a_lm``. ``method="ducc0"`` (fast path) splits the field into two real fields and calls
     ``ducc0.sht.rotate_alm(a, lmax, psi=gamma, theta=beta, phi=alpha)`` (its angles are the successive active
@@ -431,20 +428,18 @@ def rotate_alm(
     """
     lmax = _check_lmax(lmax)
     a = _check_alm(alm, lmax)
-    for name, v in (("alpha", alpha), ("beta", beta), ("gamma", gamma)):
-        if not np.isfinite(v):
-            raise InputError(f"{name} must be finite, got {v!r}")
+    alpha, beta, gamma = (validate.finite(n, v) for n, v in (("alpha", alpha), ("beta", beta), ("gamma", gamma)))
     if method == "reference":
         out = np.empty_like(a)
         for ell in range(lmax + 1):
-            sl = slice(ell * ell, (ell + 1) ** 2)
+            sl = full_block(ell)
             out[..., sl] = a[..., sl] @ wigner_D_matrix(ell, alpha, beta, gamma).T
         return out
     if method != "ducc0":
         raise InputError(f"method must be 'ducc0' or 'reference', got {method!r}")
-    ls, ms = _healpy_lm(lmax)
-    pos = alm_index(ls, ms)
-    neg = alm_index(ls, -ms)
+    ls, ms = healpy_lm(lmax)
+    pos = full_indices(ls, ms)
+    neg = full_indices(ls, -ms)
     sign = np.where(ms % 2 == 0, 1.0, -1.0)
     # f = g + i h with g, h real: g_lm = (a_lm + (-1)^m conj(a_l,-m)) / 2, h_lm = (a_lm - (-1)^m conj(a_l,-m)) / 2i.
     conj_neg = sign * np.conj(a[..., neg])
@@ -460,13 +455,6 @@ def rotate_alm(
     return out
 
 
-def _healpy_lm(lmax: int) -> tuple[IntArray, IntArray]:
-    """(l, m) of ducc0/healpy's triangular m-major layout: (0,0), (1,0) .. (lmax,0), (1,1), .. (lmax,lmax)."""
-    ms = np.concatenate([np.full(lmax + 1 - m, m) for m in range(lmax + 1)]).astype(np.int64)
-    ls = np.concatenate([np.arange(m, lmax + 1) for m in range(lmax + 1)]).astype(np.int64)
-    return ls, ms
-
-
 def rotate_alm_healpy(alm: ArrayLike, lmax: int, alpha: float, beta: float, gamma: float) -> ComplexArray:
     """:func:`rotate_alm` for a *real* field stored in ducc0/healpy's m >= 0 layout (a thin ducc0 wrapper).
 
@@ -475,7 +463,7 @@ def rotate_alm_healpy(alm: ArrayLike, lmax: int, alpha: float, beta: float, gamm
     """
     lmax = _check_lmax(lmax)
     a = np.asarray(alm, dtype=np.complex128)
-    n = (lmax + 1) * (lmax + 2) // 2
+    n = healpy_size(lmax)
     if a.ndim < 1 or a.shape[-1] != n:
         raise InputError(f"alm must have a trailing axis of length (lmax+1)(lmax+2)/2 = {n}, got shape {a.shape}")
     flat = a.reshape(-1, n)

@@ -1,7 +1,7 @@
 """The moderngl renderer (relight/gl) against the CPU evaluation of seed 000 eq. 12 and eq. 6 (relight.shrm).
 
 The shaders are the browser viewer's (web/shaders); the CPU side is ``relight.shrm`` (render_sphere, view_map,
-sample_latlong, real_harmonics, local_view_angles), written independently from the paper.
+relight.conventions.sample_latlong, real_harmonics, local_view_angles), written independently from the paper.
 
 Tolerances (why they are what they are):
 
@@ -30,8 +30,8 @@ import pytest
 import relight.gl.layout as gl_layout
 import relight.gl.render as gl_render
 import relight.gl.shaders as gl_shaders
-from relight import sh, shrm
-from relight.conventions import dirs_to_angles, dirs_to_pixel, latlong_dirs
+from relight import indexing, sh, shrm
+from relight.conventions import dirs_to_angles, dirs_to_pixel, latlong_dirs, sample_latlong
 
 # relight.sh's Legendre recursion warns (harmlessly) at the exact poles
 pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered in multiply:RuntimeWarning")
@@ -51,10 +51,10 @@ def ctx() -> Any:
 
 def smooth_maps(rng: np.random.Generator, count: int, order: int, rows: int, offset: float = 2.0) -> np.ndarray:
     """``count`` random real RGB maps band-limited to ``order`` on a rows x 2 rows grid, (count, S, 2S, 3)."""
-    l, m = sh.lm_arrays(order)
+    l, m = indexing.healpy_lm(order)
     out = []
     for _ in range(count):
-        alm = rng.normal(size=(3, sh.n_alm(order))) + 1j * rng.normal(size=(3, sh.n_alm(order)))
+        alm = rng.normal(size=(3, indexing.healpy_size(order))) + 1j * rng.normal(size=(3, indexing.healpy_size(order)))
         alm[:, m == 0] = alm[:, m == 0].real
         alm /= np.sqrt(l + 1.0)
         out.append(sh.synthesize(alm, order, rows) + offset)
@@ -95,12 +95,12 @@ def footprint(maps: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarra
     x1 = np.mod(x0 + 1, w)
     m = np.moveaxis(maps, 0, 2)
     corners = np.stack([m[y0, x0], m[y0, x1], m[y1, x0], m[y1, x1]])
-    return shrm.sample_latlong(np.abs(maps), dirs), corners.max(axis=0) - corners.min(axis=0)
+    return sample_latlong(np.abs(maps), dirs), corners.max(axis=0) - corners.min(axis=0)
 
 
 def band_bound(comp: shrm.SHRMComponent, centres: np.ndarray, view: np.ndarray) -> np.ndarray:
     """The extra float16 error of the distant path's global layers at the centres, (n, 3) (module docstring)."""
-    mags = np.abs(shrm.sample_latlong(comp.maps, centres))  # (n, K, 3)
+    mags = np.abs(sample_latlong(comp.maps, centres))  # (n, K, 3)
     bands = np.zeros(mags.shape[:1] + (comp.P + 1, 3))
     for k, (p, _) in enumerate(comp.terms):
         bands[:, p] += mags[:, k] ** 2
@@ -108,14 +108,14 @@ def band_bound(comp: shrm.SHRMComponent, centres: np.ndarray, view: np.ndarray) 
     out = HALF_EPS * np.einsum("npc,p->nc", np.sqrt(bands), norms)
     glob = comp.global_maps()
     y = np.abs(shrm.real_harmonics(comp.P, *dirs_to_angles(view)))
-    return out + HALF_EPS * np.einsum("nkc,k->nc", np.abs(shrm.sample_latlong(glob, centres)), y[: glob.shape[0]])
+    return out + HALF_EPS * np.einsum("nkc,k->nc", np.abs(sample_latlong(glob, centres)), y[: glob.shape[0]])
 
 
 def shade_cpu(model: shrm.SHRM, frame: str, normals: np.ndarray, views: np.ndarray,
               distant: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Eq. 6 (local maps) or eq. 7 (global maps) per pixel with the pixel's own view: value and tolerance, (n, 3).
 
-    The lobe centre C of every component is looked up bilinearly (relight.shrm.sample_latlong) and weighted by
+    The lobe centre C of every component is looked up bilinearly (relight.conventions.sample_latlong) and weighted by
     ``Yr_pq`` of V in C's local frame (local maps) or of V's world angles (global maps). ``distant`` adds the
     rounding of the distant path's global layers (one view for all pixels).
     """
@@ -131,8 +131,8 @@ def shade_cpu(model: shrm.SHRM, frame: str, normals: np.ndarray, views: np.ndarr
         else:
             terms, maps = comp.terms, comp.maps
             theta, phi = shrm.local_view_angles(c, views)
-        y = shrm.real_harmonics(comp.P, theta, phi)[:, [shrm.real_index(p, q) for p, q in terms]]
-        value += np.einsum("nkc,nk->nc", shrm.sample_latlong(maps, c), y)
+        y = shrm.real_harmonics(comp.P, theta, phi)[:, [indexing.full_index(p, q) for p, q in terms]]
+        value += np.einsum("nkc,nk->nc", sample_latlong(maps, c), y)
         mag, rng = footprint(maps, c)
         bound += np.einsum("nkc,nk->nc", HALF_EPS * mag + FILTER_STEP * rng, np.abs(y))
         if distant and comp.P > 0:
@@ -229,7 +229,7 @@ def test_view_map_is_eq12_per_texel(ctx: Any, synthetic: shrm.SHRM, frame: str, 
         else:
             maps = comp.maps
             y = shrm.real_harmonics(comp.P, *shrm.local_view_angles(dirs, v))
-            y = y[..., [shrm.real_index(p, q) for p, q in comp.terms]]
+            y = y[..., [indexing.full_index(p, q) for p, q in comp.terms]]
         bound = HALF_EPS * np.einsum("khwc,hwk->hwc", np.abs(maps), np.abs(y))
         if frame == "local" and comp.P > 0:
             bound = bound + band_bound(comp, dirs.reshape(-1, 3), v).reshape(bound.shape)

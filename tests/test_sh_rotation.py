@@ -14,7 +14,7 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from relight import sh
+from relight import indexing, sh
 from relight.errors import InputError
 from relight.sh_rotation import (
     SH_FROM_WORLD,
@@ -43,7 +43,7 @@ def wigner_real(angles: tuple[float, float, float], lmax: int) -> F64:
     rotated = np.zeros_like(alm)
     for ell in range(lmax + 1):
         m = np.arange(ell + 1)
-        pos = sh.alm_index(ell, m, lmax)
+        pos = indexing.healpy_index(ell, m, lmax)
         full = np.zeros((n, 2 * ell + 1), dtype=complex)
         full[:, ell + m] = alm[:, pos]
         full[:, ell - m] = (-1.0) ** m * np.conj(alm[:, pos])

@@ -16,9 +16,9 @@ import pytest
 from numpy.typing import NDArray
 from scipy.special import sph_harm_y
 
+from relight import indexing
 from relight.errors import InputError
 from relight.wigner import (
-    alm_index,
     iter_wigner_d,
     rotate_alm,
     rotate_alm_healpy,
@@ -336,15 +336,15 @@ def test_rotate_alm_healpy_layout() -> None:
     for m in range(lmax + 1):
         for ell in range(m, lmax + 1):
             v = rng.normal() + (1j * rng.normal() if m else 0.0)
-            full[alm_index(ell, m)] = v
-            full[alm_index(ell, -m)] = (-1) ** m * np.conj(v)
+            full[indexing.full_index(ell, m)] = v
+            full[indexing.full_index(ell, -m)] = (-1) ** m * np.conj(v)
             hp.append(v)
     out_hp = rotate_alm_healpy(np.array(hp), lmax, 0.3, 1.2, 2.0)
     out_full = rotate_alm(full, lmax, 0.3, 1.2, 2.0, method="reference")
     k = 0
     for m in range(lmax + 1):
         for ell in range(m, lmax + 1):
-            assert out_hp[k] == pytest.approx(out_full[alm_index(ell, m)], abs=1e-13)
+            assert out_hp[k] == pytest.approx(out_full[indexing.full_index(ell, m)], abs=1e-13)
             k += 1
 
 

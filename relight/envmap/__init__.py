@@ -28,8 +28,9 @@ imports each module only when one of its names is first used (PEP 562 ``__getatt
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from relight import lazy
 
 if TYPE_CHECKING:
     from relight.envmap.cubemap import CUBE_LAYOUTS, FACE_NAMES, cube_face_dirs, cube_faces_from_image, cube_to_latlong
@@ -84,14 +85,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'relight.envmap' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"relight.envmap.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy.exports(__name__, _EXPORTS)

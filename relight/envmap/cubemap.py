@@ -14,6 +14,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 F32 = NDArray[np.float32]
@@ -177,8 +178,7 @@ def cube_to_latlong(faces: Mapping[str, NDArray[np.floating]] | NDArray[np.float
     cube = faces_array(faces)
     if not np.isfinite(cube).all():
         raise InputError(f"cube faces contain {int(np.sum(~np.isfinite(cube)))} non-finite values (NaN/Inf)")
-    if height <= 0:
-        raise InputError(f"output height must be positive, got {height}")
+    height = validate.positive_int("output height", height)
     size, channels = cube.shape[1], cube.shape[3]
     width = 2 * height
     n = int(samples) if samples is not None else max(2, math.ceil(8.0 * size / height))

@@ -7,7 +7,6 @@ Reinhard et al. 2002, eq. 3; encoding with the sRGB OETF (IEC 61966-2-1). The vi
 
 from __future__ import annotations
 
-import math
 import os
 from typing import Final
 
@@ -15,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
+from relight import validate
 from relight.envmap.formats import check_rgb_image
 from relight.envmap.ldr import linear_to_srgb
 from relight.errors import InputError
@@ -37,8 +37,7 @@ def tonemap(rgb: NDArray[np.floating], *, exposure: float = 0.0, operator: str =
     """
     if operator not in TONEMAP_OPERATORS:
         raise InputError(f"unknown tone-mapping operator {operator!r}: expected one of {', '.join(TONEMAP_OPERATORS)}")
-    if not math.isfinite(exposure):
-        raise InputError(f"exposure must be finite, got {exposure}")
+    exposure = validate.finite("exposure", exposure)
     x = np.nan_to_num(np.asarray(rgb, dtype=np.float64), nan=0.0, posinf=np.inf, neginf=0.0)
     x = np.maximum(x, 0.0) * 2.0 ** exposure
     if operator == "aces":

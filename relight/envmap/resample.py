@@ -8,7 +8,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from relight.conventions import check_latlong_shape
+from relight import validate
+from relight.conventions import bilinear_latlong, check_latlong_shape
 from relight.errors import InputError
 
 F32 = NDArray[np.float32]
@@ -33,8 +34,7 @@ def resample_latlong(rgb: NDArray[np.floating], height: int) -> F32:
         h_in, w_in = check_latlong_shape(arr.shape)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    if height <= 0:
-        raise InputError(f"output height must be positive, got {height}")
+    height = validate.positive_int("output height", height)
     if height == h_in:
         out = arr
     elif height < h_in:
@@ -82,17 +82,8 @@ def _apply_weights(weights: Weights, arr: NDArray[np.float64], axis: int) -> NDA
 
 
 def _bilinear_latlong(arr: NDArray[np.float64], height: int) -> NDArray[np.float64]:
+    """Upsampling: the lat-long sampler (:func:`relight.conventions.bilinear_latlong`) at the new pixel centres."""
     h_in, w_in = arr.shape[:2]
-    width = 2 * height
     y = np.clip((np.arange(height) + 0.5) * h_in / height - 0.5, 0.0, h_in - 1.0)
-    x = (np.arange(width) + 0.5) * w_in / width - 0.5
-    y0 = np.minimum(np.floor(y).astype(np.intp), h_in - 2) if h_in > 1 else np.zeros(height, np.intp)
-    fy = (y - y0)[:, None, None] if h_in > 1 else np.zeros((height, 1, 1))
-    x0 = np.floor(x).astype(np.intp)
-    fx = (x - x0)[None, :, None]
-    x0 %= w_in
-    x1 = (x0 + 1) % w_in
-    y1 = np.minimum(y0 + 1, h_in - 1)
-    top = arr[y0][:, x0] * (1 - fx) + arr[y0][:, x1] * fx
-    bot = arr[y1][:, x0] * (1 - fx) + arr[y1][:, x1] * fx
-    return np.asarray(top * (1 - fy) + bot * fy, dtype=np.float64)
+    x = (np.arange(2 * height) + 0.5) * w_in / (2 * height) - 0.5
+    return bilinear_latlong(arr, y[:, None], x[None, :])

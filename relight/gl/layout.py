@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from relight.errors import InputError
 from relight.gl.shaders import CENTERS, FRAMES
+from relight.indexing import full_index
 
 _LAYER_NAME = re.compile(r"^c(\d+)\.p(\d+)\.q(-?\d+)$")
 DEFAULT_SHRM_FRAME = "local"
@@ -46,7 +47,7 @@ class LayerRef:
 
     @property
     def sh_index(self) -> int:
-        return self.p * self.p + self.p + self.q
+        return full_index(self.p, self.q)
 
 
 @dataclass(frozen=True)

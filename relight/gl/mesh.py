@@ -15,10 +15,12 @@ from numpy.typing import NDArray
 
 from relight import resources
 from relight.errors import InputError
+from relight.shapes import SHAPES
 
 #: ``data/meshes`` (bunny.obj, teapot.obj), package data of ``relight.data`` (:mod:`relight.resources`).
 MESH_DIR: Final = resources.mesh_dir()
-OBJECTS: Final = ("sphere", "bunny", "teapot")
+#: The objects the viewer draws (:mod:`relight.shapes`).
+OBJECTS: Final = SHAPES
 
 
 @dataclass(frozen=True)

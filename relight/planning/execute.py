@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import __version__
+from relight import __version__, indexing
 from relight.brdf.base import RadialLobe
 from relight.errors import InputError
 from relight.jsonable import jsonable
@@ -54,7 +54,7 @@ def irradiance_coefficients(plan: Plan, comp: Computation) -> list[list[float]]:
     assert isinstance(lobe, RadialLobe)
     transfer = radial_transfer(lobe, f_b).transfer  # (F+1, C)
     alm = sh.truncate(plan.lighting.alm, plan.lighting.lmax, f_b)
-    l_idx, _ = sh.lm_arrays(f_b)
+    l_idx, _ = indexing.healpy_lm(f_b)
     b = alm * transfer[l_idx].T
     return [[float(x) for x in row] for row in sh.to_real(b, f_b)]
 

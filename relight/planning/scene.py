@@ -21,9 +21,8 @@ from pathlib import Path
 from typing import Any
 
 from relight.errors import InputError
+from relight.shapes import SHAPES
 
-#: Shapes an object may have: the analytic sphere or a mesh of ``data/meshes`` (``relight.gl.mesh.OBJECTS``).
-SHAPES: tuple[str, ...] = ("sphere", "bunny", "teapot")
 #: Most objects in a scene: every object's maps are held in memory at once while the scene runs, and the viewer draws
 #: them all (module docstring).
 MAX_SCENE_OBJECTS = 16

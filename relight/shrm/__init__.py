@@ -60,8 +60,9 @@ This package re-exports their public names and imports each module on first use 
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from relight import lazy
 
 if TYPE_CHECKING:
     from relight.shrm.basis import (
@@ -71,7 +72,6 @@ if TYPE_CHECKING:
         Structure,
         complex_to_real,
         real_harmonics,
-        real_index,
         real_to_complex,
         structure_of,
         terms_for,
@@ -101,8 +101,6 @@ if TYPE_CHECKING:
         local_frame,
         local_view_angles,
         reflect_dirs,
-        sample_latlong,
-        sh_angles,
         tangent_field,
         unit_view,
     )
@@ -123,19 +121,16 @@ _EXPORTS: dict[str, str] = {
     "Backend": "basis",
     "SQRT2": "basis",
     "Y00": "basis",
-    "real_index": "basis",
     "terms_for": "basis",
     "structure_of": "basis",
     "real_harmonics": "basis",
     "real_to_complex": "basis",
     "complex_to_real": "basis",
     "unit_view": "geometry",
-    "sh_angles": "geometry",
     "local_frame": "geometry",
     "local_view_angles": "geometry",
     "tangent_field": "geometry",
     "lobe_centres": "geometry",
-    "sample_latlong": "geometry",
     "reflect_dirs": "geometry",
     "halfway_normals": "geometry",
     "synthesize_local": "synthesis",
@@ -161,20 +156,10 @@ __all__ = [
     "Backend", "MAX_SHRM_BYTES", "SHRM", "SHRMComponent", "SQRT2", "Structure", "Y00", "brdf_lobes",
     "complex_to_real", "create_shrm", "evaluate_local", "explicit_maps", "halfway_normals", "icosahedron_views",
     "kautz_mccool_texture", "lobe_centres", "local_frame", "local_to_global", "local_view_angles",
-    "predicted_errors", "real_harmonics", "real_index", "real_to_complex", "reflect", "reflect_dirs",
-    "render_sphere", "sample_latlong", "sh_angles", "shade", "sphere_geometry", "structure_of", "synthesize_local",
+    "predicted_errors", "real_harmonics", "real_to_complex", "reflect", "reflect_dirs",
+    "render_sphere", "shade", "sphere_geometry", "structure_of", "synthesize_local",
     "tangent_field", "terms_for", "unit_view", "view_grid",
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'relight.shrm' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"relight.shrm.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy.exports(__name__, _EXPORTS)

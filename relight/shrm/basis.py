@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from relight import sh
 from relight.brdf.base import Lobe
+from relight.indexing import full_index, full_size
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -26,14 +27,10 @@ SQRT2 = math.sqrt(2.0)
 Y00 = 1.0 / math.sqrt(4.0 * math.pi)
 
 
-# ------------------------------------------------------------------------------------------ index arithmetic
-def real_index(p: int, q: int) -> int:
-    """Position of the real term (p, q) in a full order-P block: ``p^2 + p + q`` (as ``relight.sh.to_real``)."""
-    return p * p + p + q
-
-
+# ---------------------------------------------------------------------------------------------- terms
 def terms_for(structure: Structure, p_order: int) -> list[tuple[int, int]]:
-    """The (p, q) terms stored for a component: [(0,0)]; [(p,0)]; or all (p, q) in ``real_index`` order."""
+    """The (p, q) terms stored for a component: [(0,0)]; [(p,0)]; or all (p, q) in the ``full`` layout's order
+    (:func:`relight.indexing.full_index`)."""
     if structure == "radial":
         return [(0, 0)]
     if structure == "azimuthal":
@@ -52,22 +49,22 @@ def structure_of(lobe: Lobe) -> tuple[Structure, str]:
 
 def real_harmonics(p_order: int, theta: NDArray[np.floating], phi: NDArray[np.floating]) -> FloatArray:
     """Real harmonics ``Yr_pq(theta, phi)`` (module docstring convention), shape broadcast(theta, phi).shape +
-    ((P+1)^2,), indexed by :func:`real_index`.
+    ((P+1)^2,), indexed by :func:`relight.indexing.full_index`.
 
     From ``relight.sh.legendre_rows`` (``Y_pq = Pbar_pq(cos theta) e^{i q phi}``, CS phase).
     """
     t, ph_full = np.broadcast_arrays(np.asarray(theta, dtype=np.float64), np.asarray(phi, dtype=np.float64))
     ph = ph_full.ravel()
-    out = np.zeros((t.size, (p_order + 1) ** 2))
+    out = np.zeros((t.size, full_size(p_order)))
     with np.errstate(invalid="ignore"):  # sh.legendre_rows forms 0 * log(0) at the poles (then discards it)
         rows = list(sh.legendre_rows(p_order, t.ravel()))
     for p, row in enumerate(rows):
-        out[:, real_index(p, 0)] = row[0]
+        out[:, full_index(p, 0)] = row[0]
         for q in range(1, p + 1):
             sign = SQRT2 * (-1.0) ** q
-            out[:, real_index(p, q)] = sign * row[q] * np.cos(q * ph)
-            out[:, real_index(p, -q)] = sign * row[q] * np.sin(q * ph)
-    return out.reshape(t.shape + ((p_order + 1) ** 2,))
+            out[:, full_index(p, q)] = sign * row[q] * np.cos(q * ph)
+            out[:, full_index(p, -q)] = sign * row[q] * np.sin(q * ph)
+    return out.reshape(t.shape + (full_size(p_order),))
 
 
 def real_to_complex(block: FloatArray, p: int) -> ComplexArray:

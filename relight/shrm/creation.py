@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import __version__
+from relight import __version__, validate
 from relight.brdf import lpq
 from relight.brdf.base import Lobe
 from relight.brdf.coefficients import lambda_l
@@ -124,14 +124,14 @@ def create_shrm(
         raise InputError("give either epsilon or explicit orders, not both")
     if epsilon is None and order is None:
         epsilon = DEFAULT_EPSILON
-    if epsilon is not None and not 0.0 < epsilon < 1.0:
-        raise InputError(f"epsilon must lie in (0, 1), got {epsilon}")
-    if order is not None and order < 0:
-        raise InputError(f"order F must be >= 0, got {order}")
-    if p_order is not None and p_order < 0:
-        raise InputError(f"order P must be >= 0, got {p_order}")
-    if size is not None and size < 2:
-        raise InputError(f"size must be >= 2, got {size}")
+    if epsilon is not None:
+        epsilon = validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
+    if order is not None:
+        order = validate.at_least("order F", order, 0)
+    if p_order is not None:
+        p_order = validate.at_least("order P", p_order, 0)
+    if size is not None:
+        size = validate.at_least("size", size, 2)
     pixels = require_rgb_latlong(pixels)
     h, w = pixels.shape[:2]
     lobes = brdf_lobes(brdf)

@@ -11,19 +11,19 @@ from numpy.typing import NDArray
 
 from relight.conventions import (
     latlong_dirs,
+    sample_latlong,
 )
 from relight.errors import InputError
+from relight.indexing import full_index
 from relight.shrm.basis import (
     FloatArray,
     real_harmonics,
-    real_index,
 )
 from relight.shrm.geometry import (
     halfway_normals,
     lobe_centres,
     local_view_angles,
     reflect_dirs,
-    sample_latlong,
     unit_view,
 )
 from relight.shrm.model import SHRM, SHRMComponent
@@ -129,7 +129,7 @@ def shade(
         coeffs = sample_latlong(comp.maps, c)  # (n, K, 3)
         theta_o, phi_o = local_view_angles(c, v)
         y = real_harmonics(comp.P, theta_o, phi_o)
-        cols = [real_index(p, q) for p, q in comp.terms]
+        cols = [full_index(p, q) for p, q in comp.terms]
         acc += np.einsum("nkc,nk->nc", coeffs, y[:, cols])
     return acc
 
@@ -143,6 +143,6 @@ def evaluate_local(comp: SHRMComponent, view: NDArray[np.floating] | Sequence[fl
     dirs = latlong_dirs(comp.height, 2 * comp.height)
     theta_o, phi_o = local_view_angles(dirs, v)
     y = real_harmonics(comp.P, theta_o, phi_o)
-    cols = [real_index(p, q) for p, q in comp.terms]
+    cols = [full_index(p, q) for p, q in comp.terms]
     return np.asarray(np.einsum("khwc,hwk->hwc", comp.maps, y[..., cols]), dtype=np.float64)
 

@@ -10,19 +10,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.conventions import (
+    dirs_to_angles,
     latlong_dirs,
     ring_thetas,
 )
 from relight.errors import InputError
+from relight.indexing import full_index
 from relight.shrm.basis import (
     FloatArray,
     real_harmonics,
-    real_index,
 )
 from relight.shrm.evaluation import reflect
-from relight.shrm.geometry import (
-    sh_angles,
-)
 from relight.shrm.model import SHRM, SHRMComponent
 
 
@@ -60,7 +58,7 @@ def explicit_maps(shrm: SHRM, views: FloatArray) -> NDArray[np.float32]:
     out = np.zeros((vs.shape[0], s, 2 * s, 3), dtype=np.float32)
     fast = [c for c in shrm.components if c.center == "R" and c.structure == "general"]
     for comp in fast:
-        theta_v, phi_v = sh_angles(vs)
+        theta_v, phi_v = dirs_to_angles(vs)
         y = real_harmonics(comp.P, theta_v, phi_v)  # (n, K)
         g = comp.global_maps().reshape(y.shape[1], -1)
         for k0 in range(0, vs.shape[0], 16):  # bounded float64 temporaries
@@ -86,6 +84,6 @@ def kautz_mccool_texture(comp: SHRMComponent, n_theta: int) -> NDArray[np.float3
     out = np.zeros((n_theta,) + comp.maps.shape[1:])
     for k, (p, q) in enumerate(comp.terms):
         if q == 0:
-            out += y[:, real_index(p, 0)][:, None, None, None] * comp.maps[k][None]
+            out += y[:, full_index(p, 0)][:, None, None, None] * comp.maps[k][None]
     return out.astype(np.float32)
 

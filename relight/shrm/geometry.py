@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.conventions import (
-    dirs_to_pixel,
+    dirs_to_angles,
 )
 from relight.errors import InputError
 from relight.shrm.basis import (
@@ -30,21 +30,9 @@ def unit_view(view: NDArray[np.floating] | Sequence[float]) -> FloatArray:
     return np.asarray(v / n, dtype=np.float64)
 
 
-def sh_angles(dirs: NDArray[np.floating]) -> tuple[FloatArray, FloatArray]:
-    """SH angles (theta from +Y, phi = atan2(z, x)) of directions (..., 3), accurate next to the poles.
-
-    Same angles as ``relight.conventions.dirs_to_angles`` but ``theta = atan2(hypot(x, z), y)`` instead of an
-    arccos, which loses half the digits within 1e-8 of +-Y.
-    """
-    d = np.asarray(dirs, dtype=np.float64)
-    if d.shape[-1:] != (3,):
-        raise ValueError(f"directions must have a trailing axis of length 3, got shape {d.shape}")
-    return np.arctan2(np.hypot(d[..., 0], d[..., 2]), d[..., 1]), np.arctan2(d[..., 2], d[..., 0])
-
-
 def local_frame(dirs: FloatArray) -> tuple[FloatArray, FloatArray]:
     """World vectors theta-hat and phi-hat of the local frame at directions C (..., 3) (module docstring)."""
-    a, b = sh_angles(dirs)
+    a, b = dirs_to_angles(dirs)
     th = np.stack([np.cos(a) * np.cos(b), -np.sin(a), np.cos(a) * np.sin(b)], axis=-1)
     ph = np.stack([-np.sin(b), np.zeros_like(b), np.cos(b)], axis=-1)
     return th, ph
@@ -79,28 +67,6 @@ def lobe_centres(center: str, normals: FloatArray, reflected: FloatArray) -> Flo
     if center == "T":
         return tangent_field(normals)
     raise InputError(f"unknown lobe centre {center!r}; expected 'R', 'N' or 'T'")
-
-
-def sample_latlong(maps: FloatArray, dirs: FloatArray) -> FloatArray:
-    """Bilinear lookup of lat-long maps (K, H, W, C) at directions (N, 3) -> (N, K, C).
-
-    Pixel centres are the sample points (``relight.conventions.dirs_to_pixel``); columns wrap, rows clamp at
-    the poles.
-    """
-    _, h, w, _ = maps.shape
-    y, x = dirs_to_pixel(dirs, h, w)
-    y = np.clip(y, 0.0, h - 1.0)
-    y0 = np.clip(np.floor(y).astype(np.intp), 0, max(h - 2, 0))
-    fy = (y - y0)[:, None, None]
-    y1 = np.minimum(y0 + 1, h - 1)
-    x0f = np.floor(x)
-    fx = (x - x0f)[:, None, None]
-    x0 = np.mod(x0f.astype(np.intp), w)
-    x1 = np.mod(x0 + 1, w)
-    m = np.moveaxis(maps, 0, 2)  # (H, W, K, C)
-    top = m[y0, x0] * (1.0 - fx) + m[y0, x1] * fx
-    bot = m[y1, x0] * (1.0 - fx) + m[y1, x1] * fx
-    return np.asarray(top * (1.0 - fy) + bot * fy, dtype=np.float64)
 
 
 def reflect_dirs(normals: FloatArray, view: FloatArray) -> FloatArray:

@@ -11,18 +11,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.conventions import (
+    dirs_to_angles,
     latlong_dirs,
     ring_thetas,
 )
+from relight.indexing import full_index
 from relight.shrm.basis import (
     Y00,
     FloatArray,
     Structure,
     real_harmonics,
-    real_index,
 )
 from relight.shrm.geometry import (
-    sh_angles,
     unit_view,
 )
 from relight.shrm.rotation import local_to_global
@@ -75,9 +75,9 @@ class SHRMComponent:
             dirs = latlong_dirs(self.height, 2 * self.height)
             theta_o = np.arccos(np.clip(dirs @ v, -1.0, 1.0))
             y = real_harmonics(self.P, theta_o, np.zeros_like(theta_o))
-            cols = [real_index(p, 0) for p, _ in self.terms]
+            cols = [full_index(p, 0) for p, _ in self.terms]
             return np.asarray(np.einsum("khwc,hwk->hwc", self.maps, y[..., cols]), dtype=np.float64)
-        theta_v, phi_v = sh_angles(v)
+        theta_v, phi_v = dirs_to_angles(v)
         y = real_harmonics(self.P, theta_v, phi_v)
         return np.asarray(np.tensordot(y, self.global_maps(), axes=(0, 0)), dtype=np.float64)
 

@@ -12,6 +12,7 @@ from relight import wigner
 from relight.conventions import (
     column_phis,
 )
+from relight.indexing import full_block, full_size
 from relight.shrm.basis import (
     FloatArray,
     complex_to_real,
@@ -31,7 +32,7 @@ def local_to_global(maps: FloatArray, terms: Sequence[tuple[int, int]], alphas: 
     p_order = max(p for p, _ in terms)
     betas = column_phis(width)
     index = {t: k for k, t in enumerate(terms)}
-    out = np.zeros(((p_order + 1) ** 2,) + maps.shape[1:])
+    out = np.zeros((full_size(p_order),) + maps.shape[1:])
     for p in range(p_order + 1):
         block = np.zeros((2 * p + 1,) + maps.shape[1:])
         for s in range(-p, p + 1):
@@ -44,6 +45,6 @@ def local_to_global(maps: FloatArray, terms: Sequence[tuple[int, int]], alphas: 
         rot = np.einsum("aqs,sabc->qabc", dmat, local)
         qv = np.arange(-p, p + 1)
         rot *= np.exp(-1j * np.outer(qv, betas))[:, None, :, None]
-        out[p * p : (p + 1) ** 2] = complex_to_real(rot, p)
+        out[full_block(p)] = complex_to_real(rot, p)
     return out
 

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 import ducc0
 import numpy as np
 
-from relight import sh, wigner
+from relight import indexing, sh, wigner
 from relight.brdf.coefficients import lambda_l
 from relight.conventions import (
     column_phis,
@@ -29,7 +29,7 @@ from relight.shrm.basis import (
 def _full_light(alm: ComplexArray, lmax: int, l: int) -> ComplexArray:
     """``L_lm`` for m = -lmax..lmax (zero for |m| > l) of a real field, shape (C, 2 lmax + 1)."""
     m = np.arange(l + 1)
-    pos = alm[:, sh.alm_index(l, m, lmax)]
+    pos = alm[:, indexing.healpy_index(l, m, lmax)]
     out = np.zeros((alm.shape[0], 2 * lmax + 1), dtype=np.complex128)
     out[:, lmax + m] = pos
     out[:, lmax - m[1:]] = ((-1.0) ** m[1:]) * np.conj(pos[:, 1:])
@@ -85,7 +85,7 @@ def _synthesize_ducc0(
     """Fast path: one ducc0 spin-|q| synthesis per (p, |q|, colour) (module docstring)."""
     f_order = rho.shape[0] - 1
     n_c = alm.shape[0]
-    l, _ = sh.lm_arrays(f_order)
+    l, _ = indexing.healpy_lm(f_order)
     lam = lambda_l(f_order)[l]
     index = {t: k for k, t in enumerate(terms)}
     out = np.zeros((len(terms), height, width, n_c))

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from relight import sh, shrm
+from relight import indexing, shrm
 from relight.brdf.spec import parse_brdf
 from relight.conventions import latlong_dirs
 from relight.envmap import read_envmap, resample_latlong
@@ -42,7 +42,7 @@ def masked_rms(a: np.ndarray, ref: np.ndarray, view: np.ndarray, lo_deg: float =
 
 
 def random_inputs(f: int, p: int, rng: np.random.Generator, channels: int = 3) -> tuple[np.ndarray, np.ndarray]:
-    l, m = sh.lm_arrays(f)
+    l, m = indexing.healpy_lm(f)
     alm = (rng.standard_normal((channels, l.size)) + 1j * rng.standard_normal((channels, l.size))) / np.sqrt(1 + l)
     alm[:, m == 0] = alm[:, m == 0].real
     rho = rng.standard_normal((f + 1, p + 1, p + 1, 1)) / (1.0 + np.arange(f + 1))[:, None, None, None]

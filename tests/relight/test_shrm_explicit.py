@@ -9,7 +9,7 @@ from shrm_refs import (
     env,
 )
 
-from relight import shrm
+from relight import indexing, shrm
 from relight.brdf.spec import parse_brdf
 from relight.conventions import ring_thetas
 
@@ -30,6 +30,6 @@ def test_explicit_forms() -> None:
     comp = sm.components[0]
     km = shrm.kautz_mccool_texture(comp, 5)
     theta = ring_thetas(5)[2]
-    want = sum(comp.maps[k] * shrm.real_harmonics(comp.P, np.array(theta), np.array(0.0))[shrm.real_index(p, 0)]
+    want = sum(comp.maps[k] * shrm.real_harmonics(comp.P, np.array(theta), np.array(0.0))[indexing.full_index(p, 0)]
                for k, (p, q) in enumerate(comp.terms) if q == 0)
     np.testing.assert_allclose(km[2], want, rtol=1e-5, atol=1e-6 * np.abs(want).max())

@@ -21,7 +21,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from relight import sh, wigner
+from relight import indexing, sh, wigner
 
 from ._hyp import HARD_ANGLES, m_near_l_over_e, rng, stable
 
@@ -119,7 +119,7 @@ def test_sh_round_trip_on_random_grids(lmax: int, extra: int, seed: int) -> None
     rings: Fejér's first rule with H nodes integrates polynomials in cos(theta) of degree <= H - 1 exactly, and
     ``Y_lm Y*_l'm`` has degree l + l' <= 2 lmax. 1e-11 of the largest coefficient."""
     r = rng(seed)
-    n = sh.n_alm(lmax)
+    n = indexing.healpy_size(lmax)
     a = r.standard_normal(n) + 1j * r.standard_normal(n)
     a[: lmax + 1] = a[: lmax + 1].real  # m = 0 coefficients of a real field are real
     h = 2 * lmax + extra
@@ -135,7 +135,7 @@ def test_sh_evaluate_at_hard_angles_matches_ducc0(lmax: int, thetas: list[float]
     """``relight.sh.evaluate`` at directions at and next to the poles and the equator against a direct sum over
     ducc0's Legendre values, ``sum_lm a_lm Pbar_lm e^{i m phi}`` (real field); 1e-11 of sum |a_lm|."""
     r = rng(seed)
-    n = sh.n_alm(lmax)
+    n = indexing.healpy_size(lmax)
     a = r.standard_normal(n) + 1j * r.standard_normal(n)
     a[: lmax + 1] = a[: lmax + 1].real
     k = min(len(thetas), len(phis))
@@ -144,7 +144,7 @@ def test_sh_evaluate_at_hard_angles_matches_ducc0(lmax: int, thetas: list[float]
     ref = np.zeros(k)
     for m in range(lmax + 1):
         leg = np.stack([ducc0_legendre(l, m, theta) for l in range(m, lmax + 1)])  # (l, k)
-        coef = a[sh.alm_index(np.arange(m, lmax + 1), np.full(lmax + 1 - m, m), lmax)]
+        coef = a[indexing.healpy_index(np.arange(m, lmax + 1), np.full(lmax + 1 - m, m), lmax)]
         term = (coef[:, None] * leg).sum(axis=0) * np.exp(1j * m * phi)
         ref += term.real if m == 0 else 2.0 * term.real
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-11 * np.abs(a).sum())
