@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import __version__, sh
+from relight import __version__, indexing, sh
 from relight.brdf.coefficients import spectrum_for_tolerance
 from relight.brdf.vmf import VonMisesFisher, check_sigma, sigma_to_kappa, vmf_inner
 from relight.conventions import require_rgb_latlong
@@ -134,7 +134,7 @@ def build_chain(
         transfer = lobe.transfer(f_proj)
         choice = choose_orders(spec, lighting, epsilon, None, fr, f_cap, transfer)
         f_b = choice.F_B
-        l_idx, _ = sh.lm_arrays(f_b)
+        l_idx, _ = indexing.healpy_lm(f_b)
         b_lm = sh.truncate(lighting.alm, lighting.lmax, f_b) * transfer[: f_b + 1, 0][l_idx][None, :]
         s = max(min(size_for_order(f_b), cap), min(MIN_SIZE, cap))
         s -= s % 2 if s > 2 else 0
@@ -188,7 +188,7 @@ def sample_chain(maps: list[NDArray[np.floating]], sigmas: FloatArray, dirs: NDA
                  sigma: NDArray[np.floating]) -> FloatArray:
     """``(G_sigma * L)(d)`` approximated as a shader does: bilinear lookups in the two levels around sigma,
     blended linearly in the level coordinate (:func:`level_coordinate`). dirs (n, 3), sigma (n,) -> (n, 3)."""
-    from relight.shrm import sample_latlong
+    from relight.conventions import sample_latlong
 
     d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
     x = level_coordinate(sigmas, np.asarray(sigma, dtype=np.float64).reshape(-1))

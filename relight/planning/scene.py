@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from relight.errors import InputError
-from relight.shapes import SHAPES
+from relight.shapes import SHAPES as SHAPES  # re-exported: the scene schema names its shapes
 
 #: Most objects in a scene: every object's maps are held in memory at once while the scene runs, and the viewer draws
 #: them all (module docstring).
