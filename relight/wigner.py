@@ -17,7 +17,7 @@ for the rotation ``R = R_z(alpha) R_y(beta) R_z(gamma)`` (active, right-handed, 
 act on the SH frame coordinates ``x = sin(theta) cos(phi), y = sin(theta) sin(phi), z = cos(theta)``). With the
 orthonormal complex harmonics with Condon-Shortley phase of ``scipy.special.sph_harm_y`` and ducc0,
 ``Y_lm(theta, phi) = sqrt((2l+1)/(4pi) (l-m)!/(l+m)!) P_l^m(cos theta) exp(i m phi)``, the identity this module
-guarantees (and ``tests/test_wigner.py`` checks against scipy) is::
+guarantees (and ``tests/relight/test_wigner.py`` checks against scipy) is::
 
     Y_lm(R^{-1} x) = sum_{m'} Y_lm'(x) D^l_{m'm}(R)
 

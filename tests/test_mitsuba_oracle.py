@@ -153,7 +153,8 @@ def envmap(name: str) -> FloatArray:
 def sphere_lum(shrm: SHRM, ss: int) -> FloatArray:
     """relight's sphere image, ss x ss samples per pixel averaged, as luminance (SIZE, SIZE). The global SHRM
     (``local=False``): V is the same for every pixel of the orthographic camera, so eq. 12's map for V is exact,
-    and it needs one map lookup per sample instead of (P+1)^2 (``local=True`` agrees; ``tests/test_shrm.py``)."""
+    and it needs one map lookup per sample instead of (P+1)^2 (``local=True`` agrees;
+    ``tests/relight/test_shrm_evaluation.py``)."""
     return luminance(block_mean(render_sphere(shrm, VIEW, SIZE * ss, local=False), ss))
 
 

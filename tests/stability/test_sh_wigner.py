@@ -1,9 +1,10 @@
 """SH transforms and Wigner-d at l up to 2048: property-based sweeps of the angle (at and next to the poles and
-pi/2) and of m near l/e, the cases the fixed tables of ``tests/test_sh.py`` and ``tests/test_wigner.py`` sample at a
-few points only (those stay the table-driven part; nothing here repeats them).
+pi/2) and of m near l/e, the cases the fixed tables of ``tests/relight/test_sh.py`` and
+``tests/relight/test_wigner.py`` sample at a few points only (those stay the table-driven part; nothing here repeats
+them).
 
 References: ducc0's own Legendre values (``alm2leg``, a different recursion, within 3e-13 of mpmath to l = 4000 per
-FACTS.md) and the exact Wigner sum in mpmath of ``tests/test_wigner.py`` (``d_exact``, imported, not copied).
+FACTS.md) and the exact Wigner sum in mpmath of ``tests/relight/test_wigner.py`` (``d_exact``, imported, not copied).
 Relation used: ``d^l_m0(beta) = Lambda_l Pbar_l|m|(cos beta)`` for m >= 0, times (-1)^m for m < 0 (the addition
 theorem; checked at low l by ``test_wigner``'s closed forms).
 """
@@ -27,7 +28,7 @@ from ._hyp import HARD_ANGLES, m_near_l_over_e, rng, stable
 
 
 def _test_wigner() -> ModuleType:
-    path = Path(__file__).resolve().parents[1] / "test_wigner.py"
+    path = Path(__file__).resolve().parents[1] / "relight" / "test_wigner.py"
     spec = importlib.util.spec_from_file_location("_relight_test_wigner_reference", path)
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
