@@ -33,15 +33,14 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from relight import sh
+from relight import indexing, sh
 from relight.brdf.base import RadialLobe
 from relight.brdf.coefficients import radial_transfer, spectrum_for_tolerance
 from relight.brdf.splitsum import MIN_ROUGHNESS, GGXSplitSum
-from relight.conventions import dirs_to_angles, latlong_dirs, pixel_solid_angles, require_rgb_latlong
+from relight.conventions import dirs_to_angles, latlong_dirs, pixel_solid_angles, require_rgb_latlong, sample_latlong
 from relight.envmap import cube_face_dirs
 from relight.errors import InputError
 from relight.prefilter import choose_orders, project_lighting
-from relight.shrm import sample_latlong
 
 FloatArray = NDArray[np.float64]
 Mapping = Literal["quadratic", "linear"]
@@ -237,7 +236,7 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
             spectrum = radial_transfer(sh_lobe, f_rho)
             choice = choose_orders(spectrum, lighting, epsilon, None, f_rho, f_cap, spectrum.transfer)
             order = choice.F_B
-            l_idx, _ = sh.lm_arrays(order)
+            l_idx, _ = indexing.healpy_lm(order)
             b_lm = sh.truncate(lighting.alm, lighting.lmax, order) * spectrum.transfer[: order + 1, 0][l_idx][None, :]
             theta, phi = dirs_to_angles(dirs)
             faces = faces + sh.evaluate(b_lm, order, theta, phi)
