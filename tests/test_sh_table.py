@@ -274,3 +274,15 @@ def test_isotropic_tables_agree_with_seed_000_shrm(spec: str, tol: float) -> Non
     ref = shrm_shade(shrm, frames[:, 2], VIEW)
     got = shade(build_table(parse_frame_brdf(spec), resolution=64), light, frames, VIEW)
     assert np.abs(got - ref).max() < tol * np.abs(ref).max()
+
+
+def test_rotating_the_lighting_moves_a_cap_light() -> None:
+    # L'(w) = L(R^-1 w): a cap about d turned by the world rotation R is the cap about R d (closed form both ways)
+    from scipy.spatial.transform import Rotation
+
+    from relight.sh_render import rotate_lighting
+
+    r = Rotation.from_rotvec([0.3, -1.1, 0.7]).as_matrix()
+    d = np.array([0.2, 0.9, -0.4])
+    turned = rotate_lighting(cap_light(d, 0.5, [1.0, 2.0, 3.0], 6), r)
+    assert np.abs(turned - cap_light(r @ d, 0.5, [1.0, 2.0, 3.0], 6)).max() < 1e-12
