@@ -12,7 +12,6 @@ import io
 import struct
 import subprocess
 import sys
-import time
 import tracemalloc
 import zlib
 from pathlib import Path
@@ -59,19 +58,16 @@ def test_zero_size_images() -> None:
 def test_huge_header_rejected_without_allocation(header: bytes) -> None:
     tracemalloc.start()
     try:
-        t0 = time.perf_counter()
         hdr = E.probe(header)
         assert (hdr.width, hdr.height) == (100_000, 100_000)
         with pytest.raises(InputError, match="100000 x 100000 = 10000000000 pixels, more than the limit of 8388608"):
             E.read_envmap(header, max_pixels=4096 * 2048)
         with pytest.raises(InputError, match="more than the limit"):
             E.read_envmap(header)  # the hard limit applies without max_pixels too
-        elapsed = time.perf_counter() - t0
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert elapsed < 0.5
-    assert peak < 1 << 20
+    assert peak < 1 << 20  # refused from the header: no pixel buffer was allocated
 
 
 def test_probe_reads_only_the_header_of_a_file(tmp_path: Path) -> None:

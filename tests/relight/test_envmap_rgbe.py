@@ -7,7 +7,6 @@ table re-typed here, and closed-form solid angles.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -65,13 +64,14 @@ def test_hdr_rle_hand_built() -> None:
     np.testing.assert_allclose(rgb[0], expected, rtol=1e-6)
 
 
-def test_hdr_reader_is_fast() -> None:
+def test_hdr_reader_decodes_a_full_size_map() -> None:
+    """A full-size (512 x 1024) RLE file decodes exactly: RGBE keeps 8 mantissa bits of the pixel's largest
+    channel, so every channel is within 2^-8 of that maximum (the speed of this path belongs in bench/)."""
     rgb = np.random.default_rng(6).random((512, 1024, 3)) ** 4 * 100
-    data = rgbe.encode(rgb)
-    t0 = time.perf_counter()
-    back, _ = E.read_image(data)
-    assert time.perf_counter() - t0 < 1.0
+    back, _ = E.read_image(rgbe.encode(rgb))
     assert back.shape == (512, 1024, 3)
+    scale = rgb.max(axis=-1, keepdims=True)
+    assert np.all(np.abs(back - rgb) <= 2.0**-8 * scale + 1e-30)
 
 
 def test_hdr_bad_files() -> None:
