@@ -11,7 +11,7 @@ with the numbers of this run and ``summary.json``.
 
     python bench/tradeoff_plots.py [--rows 64] [--size 32] [--recalibrate] [--out docs/accuracy]
 
-One BLAS thread (set before NumPy loads): FACTS.md, one thread pool per process; with OpenBLAS's threads a tiny
+One BLAS thread (set before NumPy loads): docs/facts.md, one thread pool per process; with OpenBLAS's threads a tiny
 complex ``tensordot`` in the order selection costs up to 300x more on a busy 2-core machine, which no cost model
 predicts. Takes about two minutes on the 2-core development machine.
 """

@@ -1,6 +1,6 @@
 """Viewer frame time: SHRMs of order P = 0, 2, 3, 5 against a plain single-texture environment reflection.
 
-Headless Chromium (Debian's, SwiftShader WebGL2: the flags of shared/FACTS.md) renders the viewer page
+Headless Chromium (Debian's, SwiftShader WebGL2: the flags of docs/facts.md) renders the viewer page
 (``relight.server.viewer.mount_viewer`` on a bare app: no jobs needed) at 1280 x 720. Each configuration loads an SHRM
 straight into the page (``window.relight.viewer.setShrm``): one R-centred component with (P + 1)^2 local layers
 (S x 2S, float16, random band-limited content: timing does not depend on the values). The baseline shades the

@@ -10,7 +10,7 @@ reference; ``tests/test_mitsuba_oracle.py`` checks relight's SHRM against it blo
 by the tests (``tests/test_tradeoff_mitsuba.py``, ``tests/test_mitsuba_oracle.py``):
 
 * ``TorranceSparrow(alpha, "beckmann", fresnel="none")`` = ``roughconductor``, ``distribution="beckmann"``,
-  ``material="none"`` (F = 1; D and Walter et al. 2007's rational Smith G1 as in ``shared/FACTS.md``);
+  ``material="none"`` (F = 1; D and Walter et al. 2007's rational Smith G1 as in ``docs/facts.md``);
 * ``TorranceSparrow(alpha, "ggx", fresnel="none")`` (and ``GGX(alpha)``) = ``roughconductor``,
   ``distribution="ggx"``, ``material="none"`` (exact Smith G1 for GGX in both);
 * ``Lambert(albedo)`` = ``diffuse`` with ``reflectance = albedo`` (``f_r = albedo / pi`` in both).
@@ -22,7 +22,7 @@ Everything else has none: Phong has no Mitsuba 3 plugin, Schlick's and the condu
 Mitsuba's (its ``roughconductor`` uses the exact conductor Fresnel of named materials with spectral IORs), and
 seed 000's eq. 11 microfacet, Kajiya–Kay, tabulated and measured lobes have no plugin either.
 
-**Conventions** (``shared/FACTS.md`` "Independent ground truth: Mitsuba 3", measured with Mitsuba 3.9.1 by
+**Conventions** (``docs/facts.md`` "Independent ground truth: Mitsuba 3", measured with Mitsuba 3.9.1 by
 evaluating the ``envmap`` emitter on a bitmap whose texels encode their own indices):
 
 * ``envmap`` bitmap of ``Hm x Wm`` texels: texel ``(y, x)`` is the radiance in the direction
@@ -64,7 +64,7 @@ from relight.errors import InputError, RelightError
 
 FloatArray = NDArray[np.float64]
 
-#: Preferred variants: the LLVM one is 3-5x faster but needs Debian's ``libllvm19`` (FACTS.md).
+#: Preferred variants: the LLVM one is 3-5x faster but needs Debian's ``libllvm19`` (docs/facts.md).
 VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
 #: Largest Mitsuba bitmap width :func:`texels_per_pixel` aims for (a 4096 x 2049 RGB float32 bitmap is 100 MB).
 MAX_BITMAP_WIDTH = 4096

@@ -13,13 +13,13 @@ sqrt2 (-1)^m Im Y_{l|m|}``) stored in the ``full`` layout (:func:`relight.indexi
 
 Two implementations sit behind each call (``backend=``):
 
-* ``"ducc0"`` — the fast, accurate library (stable to l ~ 4000; FACTS.md).
+* ``"ducc0"`` — the fast, accurate library (stable to l ~ 4000; docs/facts.md).
 * ``"numpy"`` — the paper's separable algorithm written plainly (§6.1): an FFT over phi, then Legendre sums over
   theta, with the normalised associated Legendre functions from a scaled three-term recursion that neither
   underflows (``sin^m theta`` near m ~ l/e) nor overflows. Used to test the fast path.
 
 Lighting is projected by *quadrature over the pixels* (Fejér's first rule in cos theta, exact for band-limited
-signals), never by a band-limited analysis that folds a sun into low orders (FACTS.md).
+signals), never by a band-limited analysis that folds a sun into low orders (docs/facts.md).
 """
 
 from __future__ import annotations

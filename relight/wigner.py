@@ -49,7 +49,7 @@ starts at ``l0 = max(|m|, |q|)`` from the closed form (Wigner's sum, Edmonds §4
 and runs upward. It is forward-stable: from ``l0`` the wanted solution is the growing one through the evanescent
 region and both solutions are of the same size in the oscillatory region (as for associated Legendre functions).
 The seeds ``S(n, k)`` overflow (binomials to 2^4096) and underflow (powers of sin/cos) in double precision long
-before l = 2048, the failure of naive recursions noted in ``FACTS.md``; here every value is carried as a mantissa
+before l = 2048, the failure of naive recursions noted in ``docs/facts.md``; here every value is carried as a mantissa
 times an integer power of two (the "extended exponent" technique of libsharp, Reinecke 2011) and rescaled by exact
 powers of two, so no precision is lost to scaling, and the result is the exact double ``ldexp(mantissa, exponent)``
 (a true value below ~1e-308 underflows to 0). The seeds themselves are built by the exact-ratio recursions

@@ -1,6 +1,6 @@
 """Tests of relight.brdf.models and relight.brdf.spec against independent forms.
 
-References: closed forms written out here, a scalar transcription of Mitsuba 3's roughconductor (FACTS.md),
+References: closed forms written out here, a scalar transcription of Mitsuba 3's roughconductor (docs/facts.md),
 brute-force Gauss-Legendre x uniform-azimuth quadrature of the directional albedo, and textbook Fresnel values.
 """
 
@@ -114,7 +114,7 @@ def test_lobe1d_table_and_callable() -> None:
 
 
 def mitsuba_roughconductor_none(wi: NDArray[np.float64], wo: NDArray[np.float64], a: float) -> float:
-    """Scalar transcription of FACTS.md: Mitsuba 3 roughconductor, beckmann, material="none" (F = 1)."""
+    """Scalar transcription of docs/facts.md: Mitsuba 3 roughconductor, beckmann, material="none" (F = 1)."""
     h = (wi + wo) / np.linalg.norm(wi + wo)
     cos_h = h[2]
     tan2 = (1 - cos_h**2) / cos_h**2

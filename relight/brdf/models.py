@@ -96,7 +96,7 @@ def _as_vectors(*vs: ArrayLike) -> tuple[FloatArray, ...]:
 
 
 def D_beckmann(cos_h: ArrayLike, alpha: float) -> FloatArray:
-    """Beckmann distribution ``exp(-tan^2 th / a^2) / (pi a^2 cos^4 th)``, a = RMS slope (FACTS.md; Mitsuba 3).
+    """Beckmann distribution ``exp(-tan^2 th / a^2) / (pi a^2 cos^4 th)``, a = RMS slope (docs/facts.md; Mitsuba 3).
 
     Walter et al. 2007 eq. 25 (normalised so that ``int D cos(th) dw = 1``); 0 for ``cos_h <= 0``.
     """
@@ -122,7 +122,7 @@ def _tan_theta(cos_v: FloatArray) -> FloatArray:
 
 
 def G1_smith_beckmann(cos_v: ArrayLike, alpha: float) -> FloatArray:
-    """Smith masking for Beckmann, Walter et al. 2007 eq. 27 rational approximation (Mitsuba 3, FACTS.md).
+    """Smith masking for Beckmann, Walter et al. 2007 eq. 27 rational approximation (Mitsuba 3, docs/facts.md).
 
     With ``a' = 1 / (alpha tan theta)``: 1 if ``a' >= 1.6``, else
     ``(3.535 a' + 2.181 a'^2) / (1 + 2.276 a' + 2.577 a'^2)``; 0 for ``cos_v <= 0``.
@@ -238,7 +238,7 @@ class TorranceSparrow(IsotropicBRDF):
 
     ``alpha > 0``: RMS slope for Beckmann (:func:`D_beckmann`, :func:`G1_smith_beckmann`, Walter's rational
     approximation) or the GGX roughness (:func:`D_ggx`, exact :func:`G1_smith_ggx`). ``fresnel``: ``"none"``
-    (F = 1: with Beckmann this is exactly Mitsuba 3's ``roughconductor`` with ``material="none"``, FACTS.md),
+    (F = 1: with Beckmann this is exactly Mitsuba 3's ``roughconductor`` with ``material="none"``, docs/facts.md),
     ``"schlick"`` with ``f0`` in [0, 1] (grey or RGB), or ``"conductor"`` with complex IOR ``eta + i k`` (eta > 0,
     k >= 0, grey or RGB; :func:`F_conductor`).
     """

@@ -36,7 +36,7 @@ Mode = Literal["distant", "near"]
 Camera = Literal["orthographic", "perspective"]
 FloatImage = NDArray[np.float32]
 
-#: Orthographic camera distance (FACTS.md's Mitsuba set-up: look_at(3 V, 0, +Y)).
+#: Orthographic camera distance (docs/facts.md's Mitsuba set-up: look_at(3 V, 0, +Y)).
 ORTHO_DISTANCE = 3.0
 _FULLSCREEN = np.array([-1.0, -1.0, 3.0, -1.0, -1.0, 3.0], dtype="<f4")
 

@@ -6,7 +6,7 @@
 * :func:`envmap_texture` — an environment map as float16 RGB lat-long texels for the viewer's background.
 * :func:`encode_png` / :func:`encode_exr` — the display PNG (``relight.envmap.tonemap``) and the float EXR.
 
-Both readers take a file path of an *uploaded* map: call them in a worker process (untrusted bytes, FACTS.md).
+Both readers take a file path of an *uploaded* map: call them in a worker process (untrusted bytes, docs/facts.md).
 """
 
 from __future__ import annotations

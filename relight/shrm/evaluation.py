@@ -58,7 +58,7 @@ def reflect(shrm: SHRM, view: NDArray[np.floating] | Sequence[float], *, size: i
 def sphere_geometry(view: FloatArray, size: int) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Normals of a unit sphere seen by an orthographic camera looking along -V, +Y up, filling the frame.
 
-    The camera matches Mitsuba's ``look_at(origin=3 V, target=0, up=+Y)`` (``shared/FACTS.md``): image right =
+    The camera matches Mitsuba's ``look_at(origin=3 V, target=0, up=+Y)`` (``docs/facts.md``): image right =
     ``normalize(up x V)`` (+X for V = +Z), image up = ``V x right``; pixel (i, j) sits at
     ``x = 2 (j + 1/2) / size - 1``, ``y = 1 - 2 (i + 1/2) / size``. Returns (size, size, 3) normals and the mask
     of pixels on the sphere. For V = +-Y the up vector is +Z instead.

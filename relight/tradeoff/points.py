@@ -62,7 +62,7 @@ def pareto_flags(errors: Sequence[float], seconds: Sequence[float]) -> list[bool
     return out
 
 
-#: Runs faster than this are repeated (best of :data:`REPEAT`): the machines are noisy (FACTS.md).
+#: Runs faster than this are repeated (best of :data:`REPEAT`): the machines are noisy (docs/facts.md).
 QUICK_SECONDS = 0.25
 REPEAT = 3
 

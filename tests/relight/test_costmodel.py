@@ -3,7 +3,7 @@ the cache keyed by machine and version, and the calibrated prediction against a 
 
 Counts are checked by instrumenting the code under test (ducc0 syntheses, lobe evaluations, radial quadrature
 orders), an independent tally of the work; timings only in the calibration test, with a wide tolerance because
-the machines are shared and noisy (FACTS.md).
+the machines are shared and noisy (docs/facts.md).
 """
 
 from __future__ import annotations

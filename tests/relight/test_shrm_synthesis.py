@@ -35,7 +35,7 @@ def test_p0_shrm_equals_prefilter_radial() -> None:
 @pytest.mark.parametrize(("f", "p"), [(20, 3), (32, 8)])
 def test_fast_synthesis_matches_wigner_reference(f: int, p: int) -> None:
     # ducc0 spin-|q| synthesis (sign/normalisation derived in relight.shrm) against App. C step 3 summed with
-    # relight.wigner's d^l_mq; q up to 8 (beyond FACTS.md's tested |q| <= 5).
+    # relight.wigner's d^l_mq; q up to 8 (beyond docs/facts.md's tested |q| <= 5).
     alm, rho = random_inputs(f, p, np.random.default_rng(42))
     terms = shrm.terms_for("general", p)
     a = shrm.synthesize_local(alm, f, rho, terms, 16)

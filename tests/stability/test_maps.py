@@ -132,7 +132,7 @@ def test_all_zero_maps_give_zero_and_finite_reports(tmp_path: Path) -> None:
 
 
 def test_negative_texels_are_clamped_on_reading_and_linear_in_the_core() -> None:
-    """Real maps carry small negative texels from lossy compression (FACTS.md): reading clamps and counts them.
+    """Real maps carry small negative texels from lossy compression (docs/facts.md): reading clamps and counts them.
     Arrays handed to the core directly keep them: the prefilter is linear, so f(a - b) = f(a) - f(b)."""
     e = read_envmap(DATA / "forest.exr")
     assert e.negatives_clamped > 0 and e.min_negative < 0 and float(e.pixels.min()) == 0.0

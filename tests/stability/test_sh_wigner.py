@@ -4,7 +4,8 @@ pi/2) and of m near l/e, the cases the fixed tables of ``tests/relight/test_sh.p
 them).
 
 References: ducc0's own Legendre values (``alm2leg``, a different recursion, within 3e-13 of mpmath to l = 4000 per
-FACTS.md) and the exact Wigner sum in mpmath of ``tests/relight/test_wigner.py`` (``d_exact``, imported, not copied).
+docs/facts.md) and the exact Wigner sum in mpmath of ``tests/relight/test_wigner.py`` (``d_exact``, imported,
+not copied).
 Relation used: ``d^l_m0(beta) = Lambda_l Pbar_l|m|(cos beta)`` for m >= 0, times (-1)^m for m < 0 (the addition
 theorem; checked at low l by ``test_wigner``'s closed forms).
 """

@@ -1,6 +1,6 @@
 """Browser fixtures: a real relight server with the viewer (uvicorn on a free loopback port, real Dask worker
 processes; ``tests/web/serve_viewer.py``) and Debian's Chromium driven by Playwright with the flags of
-``shared/FACTS.md`` (SwiftShader WebGL2). Screenshots go to ``test-artifacts/web/`` (gitignored).
+``docs/facts.md`` (SwiftShader WebGL2). Screenshots go to ``test-artifacts/web/`` (gitignored).
 
 Skips (with the reason) only when the Playwright package or ``/usr/bin/chromium`` is missing; never downloads a
 browser.
@@ -31,7 +31,7 @@ SERVER_ENV = {
 }
 ARTIFACTS = REPO / "test-artifacts" / "web"
 CHROMIUM = os.environ.get("RELIGHT_CHROMIUM", "/usr/bin/chromium")
-#: shared/FACTS.md: WebGL2 on SwiftShader, headless, no network side channels (the user-data-dir is added per run).
+#: docs/facts.md: WebGL2 on SwiftShader, headless, no network side channels (the user-data-dir is added per run).
 CHROMIUM_FLAGS = [
     "--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--disable-gpu-sandbox",
     "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync",
