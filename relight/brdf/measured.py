@@ -4,7 +4,8 @@ MERL (Matusik, Pfister, Brand & McMillan 2003, "A data-driven reflectance model"
 ---------------------------------------------------------------------------------------------------------
 A file is three little-endian int32 dims that must equal ``(90, 90, 180)``, then ``3 * 90 * 90 * 180`` little-endian
 float64 values: all red, then all green, then all blue, each ``[theta_h][theta_d][phi_d]`` with phi_d fastest;
-``12 + 3 * 1,458,000 * 8 = 34,992,012`` bytes in all, checked before anything else is read (as ``docs/facts.md`` says). Stored values times ``1/1500``, ``1.15/1500``, ``1.66/1500`` (R, G, B;
+``12 + 3 * 1,458,000 * 8 = 34,992,012`` bytes in all, checked before anything else is read (as ``docs/facts.md``
+says). Stored values times ``1/1500``, ``1.15/1500``, ``1.66/1500`` (R, G, B;
 ``BRDFRead.cpp`` RED_SCALE, GREEN_SCALE, BLUE_SCALE) give f_r in 1/sr; negative values mark
 missing samples (below the horizon) and read as 0. The angles are Rusinkiewicz's (1998) half/difference angles:
 ``theta_h`` = angle(n, h), ``theta_d`` = angle(wi, h), ``phi_d`` = azimuth of wi about h measured from the plane of
