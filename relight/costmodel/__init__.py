@@ -58,8 +58,9 @@ machines are noisy, so :class:`Calibration` keeps the in-sample ratio of predict
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from relight import lazy
 
 if TYPE_CHECKING:
     from relight.costmodel.angular import (
@@ -216,19 +217,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        try:  # a submodule not imported yet (``relight.costmodel.<module>``)
-            return importlib.import_module(f"relight.costmodel.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"relight.costmodel.{name}":
-                raise
-            raise AttributeError(f"module 'relight.costmodel' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f"relight.costmodel.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy.exports(__name__, _EXPORTS)

@@ -18,8 +18,9 @@ The worker and the server call these; they hold no planning arithmetic of their 
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from relight import lazy
 
 if TYPE_CHECKING:
     from relight.planning.effects import (
@@ -132,19 +133,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        try:  # a submodule not imported yet (``relight.planning.<module>``)
-            return importlib.import_module(f"relight.planning.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"relight.planning.{name}":
-                raise
-            raise AttributeError(f"module 'relight.planning' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f"relight.planning.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy.exports(__name__, _EXPORTS)

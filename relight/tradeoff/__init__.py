@@ -65,8 +65,9 @@ method, :class:`TradeoffPoint`), :mod:`~relight.tradeoff.mitsuba` (the Mitsuba 3
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from relight import lazy
 
 if TYPE_CHECKING:
     from relight.tradeoff.plots import (
@@ -137,19 +138,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        try:  # a submodule not imported yet (``relight.tradeoff.<module>``)
-            return importlib.import_module(f"relight.tradeoff.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"relight.tradeoff.{name}":
-                raise
-            raise AttributeError(f"module 'relight.tradeoff' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f"relight.tradeoff.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy.exports(__name__, _EXPORTS)
