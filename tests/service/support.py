@@ -6,6 +6,7 @@ Every wait is bounded; nothing sleeps longer than a poll interval.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -19,6 +20,7 @@ from typing import Any
 
 import httpx
 import numpy as np
+from httpx_sse import connect_sse
 
 from relight.client.sdk import RelightClient
 
@@ -219,3 +221,15 @@ def read_exr(data: bytes) -> dict[str, np.ndarray]:
 
     layers, _ = read_exr_layers(data)
     return layers
+
+
+def wait_done(http: httpx.Client, path: str, timeout: float = 180.0) -> dict[str, Any]:
+    """Follow the job's event stream to its end, then read the resource."""
+    job_id = path.rsplit("/", 1)[1]
+    with connect_sse(http, "GET", f"{path}/events", timeout=httpx.Timeout(timeout, connect=10.0)) as source:
+        assert source.response.status_code == 200, source.response.read()
+        last = [e for e in source.iter_sse()][-1]
+    assert last.event == "end" and json.loads(last.data)["id"] == job_id, last
+    body: dict[str, Any] = http.get(path).json()
+    assert body["state"] == json.loads(last.data)["state"]
+    return body

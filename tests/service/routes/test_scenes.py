@@ -2,33 +2,19 @@
 
 from __future__ import annotations
 
-import json
 import tempfile
 from typing import Any
 
 import httpx
 import numpy as np
 import pytest
-from httpx_sse import connect_sse
 
 from relight.client.sdk import RelightClient
 
-from ..support import assert_healthy, assert_problem, read_exr
+from ..support import assert_healthy, assert_problem, read_exr, wait_done
 
 pytestmark = pytest.mark.timeout(240)
 UNKNOWN = "f" * 64
-
-
-def wait_done(http: httpx.Client, path: str, timeout: float = 180.0) -> dict[str, Any]:
-    """Follow the job's event stream to its end, then read the resource."""
-    job_id = path.rsplit("/", 1)[1]
-    with connect_sse(http, "GET", f"{path}/events", timeout=httpx.Timeout(timeout, connect=10.0)) as source:
-        assert source.response.status_code == 200, source.response.read()
-        last = [e for e in source.iter_sse()][-1]
-    assert last.event == "end" and json.loads(last.data)["id"] == job_id, last
-    body: dict[str, Any] = http.get(path).json()
-    assert body["state"] == json.loads(last.data)["state"]
-    return body
 
 
 def scene(env_id: str, **kw: Any) -> dict[str, Any]:
