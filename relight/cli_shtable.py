@@ -28,7 +28,7 @@ def cmd_sh_table(args: argparse.Namespace) -> int:
 
 
 #: ``relight.sh_table``'s defaults, repeated so that registering the command imports nothing numerical
-#: (tests/test_cli_shtable.py checks that they agree).
+#: (tests/relight/test_cli_shtable.py checks that they agree).
 DEFAULT_ORDER, DEFAULT_RESOLUTION, DEFAULT_LAYOUT = 4, 128, "parabolic"
 
 

@@ -3,11 +3,11 @@
 Mitsuba 3 (``pip install mitsuba``) is optional: it is imported inside the functions that need it, and
 :func:`unavailable_reason` says why it cannot be used here (not installed, no variant that runs) instead of failing.
 ``relight.tradeoff.sweep`` uses it to record each point's error against Mitsuba as well as against the angular
-reference; ``tests/test_mitsuba_oracle.py`` checks relight's SHRM against it block by block.
+reference; ``tests/relight/test_mitsuba_oracle.py`` checks relight's SHRM against it block by block.
 
 **Twins** (:func:`twin`). A relight model has a Mitsuba twin when Mitsuba's ``BSDF.eval`` (which returns
 ``f_r cos(theta_light)``) equals relight's ``f_r cos(theta_light)`` in every pair of directions, checked to 1e-4
-by the tests (``tests/test_tradeoff_mitsuba.py``, ``tests/test_mitsuba_oracle.py``):
+by the tests (``tests/relight/test_tradeoff_mitsuba.py``, ``tests/relight/test_mitsuba_oracle.py``):
 
 * ``TorranceSparrow(alpha, "beckmann", fresnel="none")`` = ``roughconductor``, ``distribution="beckmann"``,
   ``material="none"`` (F = 1; D and Walter et al. 2007's rational Smith G1 as in ``docs/facts.md``);
@@ -16,7 +16,7 @@ by the tests (``tests/test_tradeoff_mitsuba.py``, ``tests/test_mitsuba_oracle.py
 * ``Lambert(albedo)`` = ``diffuse`` with ``reflectance = albedo`` (``f_r = albedo / pi`` in both).
 * ``AnisotropicTorranceSparrow(alpha_u, alpha_v, d, fresnel="none")`` (seed 003, ``relight.brdf.anisotropic``) =
   ``roughconductor`` with ``alpha_u`` along the shading frame's s (relight's tangent t), ``alpha_v`` along t
-  (relight's bitangent b), ``material="none"`` (``tests/test_anisotropic_brdf.py``).
+  (relight's bitangent b), ``material="none"`` (``tests/relight/test_anisotropic_brdf.py``).
 
 Everything else has none: Phong has no Mitsuba 3 plugin, Schlick's and the conductor Fresnel terms are not
 Mitsuba's (its ``roughconductor`` uses the exact conductor Fresnel of named materials with spectral IORs), and
@@ -204,7 +204,7 @@ def mitsuba_bitmap(pixels: NDArray[np.floating], up: int) -> NDArray[np.float32]
     ``0 < r < up``, exactly on the edge between rows i - 1 and i for r = 0 (given their mean), and on the poles for
     y = 0 and y = Hm - 1 (given the mean of the first or last row: every texel there is the same direction). So
     Mitsuba's radiance equals the pixel value in every direction farther than 1/up of a pixel from a pixel edge
-    (checked in ``tests/test_mitsuba_oracle.py``); the seams are box filters of the edges, of width 1/up pixel
+    (checked in ``tests/relight/test_mitsuba_oracle.py``); the seams are box filters of the edges, of width 1/up pixel
     across columns and 2/up across rows.
     """
     p = np.asarray(pixels, dtype=np.float64)

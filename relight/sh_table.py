@@ -52,7 +52,7 @@ DEFAULT_RESOLUTION = 128
 #: Default map, chosen by measured interpolation error at equal bytes (R x R texels either way): the parabolic
 #: map's RMS error against direct projection at 400 random views is 0.55-0.9x the hemi-octahedral one's at R = 32
 #: and 64 for AS (12, 4), AS (48, 16) and GGX (0.2, 0.5) — it spends 2x the linear resolution at the rim, where
-#: tables vary fastest, which outweighs the 21.5 % of texels outside the disk (tests/test_sh_table.py).
+#: tables vary fastest, which outweighs the 21.5 % of texels outside the disk (tests/relight/test_sh_table.py).
 DEFAULT_LAYOUT: Layout = "parabolic"
 #: Largest order accepted (n = 225, the paper's offline Fig. 6 column).
 MAX_ORDER = 14

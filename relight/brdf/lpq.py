@@ -32,7 +32,7 @@ Tabulation grid (the paper's S_rho x T_rho x T_rho, §5 and §5.2 "S ~ 10 F, T ~
   (a single sample for lobes without azimuthal dependence, q = 0 only: exact).
 
 Measured accuracy of this grid (microfacet sigma = 0.1 and 0.3 against a 3x oversampled grid, and against the
-brute-force :func:`rho_lpq_direct`; ``tests/test_lpq.py``): about 1e-4 of the largest coefficient, and epsilon
+brute-force :func:`rho_lpq_direct`; ``tests/relight/test_lpq.py``): about 1e-4 of the largest coefficient, and epsilon
 within 2e-4. The floor comes from the jump of rho_hat at the horizon ``N . L = 0`` (e.g. eq. 11 does not vanish
 there), which makes every product rule first order; smooth radial lobes (Phong) reach 1e-13.
 

@@ -6,7 +6,7 @@
   transform, ``relight.envmap.tonemap``).
   Tolerance: 2 levels of 8 bits per channel, mean below 0.1 level. Both sides use the same float16 coefficients;
   what remains is float32 arithmetic and the GPU's sub-texel filter weights (< 2^-9 of a texel step, see
-  tests/test_gl_render.py), far below one 8-bit level except where a value sits on a rounding boundary (one
+  tests/relight/test_gl_render.py), far below one 8-bit level except where a value sits on a rounding boundary (one
   level); the second level covers the ACES curve's steepest part.
 * A slider changes the plan (POST /plan) shown in the panel.
 * A bad upload shows the API's problem-details text.

@@ -38,7 +38,7 @@ from relight.tangent_frames import projected_frames
 from relight.view_maps import map_views
 
 F64 = NDArray[np.float64]
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 ORDER = 4
 VIEW = np.array([0.3, 0.5, 0.8]) / np.linalg.norm([0.3, 0.5, 0.8])
 

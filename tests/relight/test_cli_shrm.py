@@ -14,7 +14,7 @@ from relight.envmap import read_envmap, read_image, resample_latlong, write_exr
 from relight.reference_view import reference_view
 from relight.shrm_io import read_shrm, sidecar_path
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 
 
 @pytest.fixture(scope="module")

@@ -34,14 +34,14 @@ from relight.sh_render import environment_coefficients, render_sphere
 from relight.sh_table import SHTable, build_table
 
 F64 = NDArray[np.float64]
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 ROWS = 32
 VIEW = np.array([0.8, 0.6, 0.0])  # the tangent field's poles (n = +-Z) lie on the silhouette
 TANGENT = {"kind": "azimuthal", "axis": [0.0, 0.0, 1.0]}
 SETTINGS = TwinSettings(size=64, block=4, spp=4096, radius=1.0, supersample=2)
 #: Systematic allowance (relative RMS over blocks) besides the noise: Mitsuba sees the 32-row map as piecewise
 #: constant texels (bands above F re-enter at the pixel scale), the 64 x 64 table is interpolated bilinearly
-#: (<= 3.6e-3 of the largest value, tests/test_sh_table.py) and relight's image is supersampled 2 x 2.
+#: (<= 3.6e-3 of the largest value, tests/relight/test_sh_table.py) and relight's image is supersampled 2 x 2.
 SYSTEMATIC = 1e-2
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from relight.envmap import read_image, resample_latlong, write_exr, write_hdr
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 
 
 def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:

@@ -85,7 +85,7 @@ def nearest_upsample(pixels: NDArray[np.floating], k: int) -> FloatArray:
     p = np.asarray(pixels, dtype=np.float64)
     return np.repeat(np.repeat(p, k, axis=0), k, axis=1)
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 MAPS = ("studio", "sunset")  # studio: lights ~300x the mean; sunset: a low sun ~500x the mean at 128 rows
 ALPHAS = (0.05, 0.2, 0.5)
 VIEW = np.array([0.0, 0.0, 1.0])

@@ -16,7 +16,7 @@ from relight.metrics import relative_rms
 from relight.prefilter import prefilter_radial, size_for_order
 from relight.reference import reference_radial
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
+DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 
 
 def sample(name: str, height: int = 512) -> np.ndarray:
