@@ -14,8 +14,8 @@ axis (``exp(-gamma^2 / (2 sigma^2)) / (2 pi sigma^2)``). Its Legendre (SH transf
 Computed with ``scipy.special.ive`` (``I_nu(x) e^{-x}``), whose scaling cancels in the ratio, so neither
 overflows for any kappa nor l (from kappa ~ 1e10 on, where ive returns NaN, the asymptote below is exact to
 float64) (checked against quadrature and the large-kappa asymptote
-``exp(-l (l + 1) / (2 kappa))`` in ``tests/relight/test_vmf.py``). ``VonMisesFisher`` is a ``RadialLobe`` about R: every radial
-pipeline (``prefilter_radial``, ``reference_radial``, the planner) accepts it, and
+``exp(-l (l + 1) / (2 kappa))`` in ``tests/relight/test_vmf.py``). ``VonMisesFisher`` is a ``RadialLobe`` about
+R: every radial pipeline (``prefilter_radial``, ``reference_radial``, the planner) accepts it, and
 ``relight.brdf.coefficients.radial_transfer`` uses the closed form instead of quadrature.
 """
 
