@@ -1,0 +1,248 @@
+"""SH-table shading on the GPU (moderngl, EGL; Mesa llvmpipe works): seed 003's three rendering modes.
+
+Kautz, Sloan & Snyder 2002, §4: at each vertex p with frame rows ``(t, b, n)``, (1) rotate the world lighting into
+the local frame, (2) rotate the view, (3) look the table up at the local view, (4) ``Q_p = sum_i L_{p,i} c_i(v_p)``
+(eq. 1). The paper rotated the lighting on the host ("too complicated for current graphics hardware"); here it is
+``web/shaders/sh_rotation.glsl`` (Ivanic–Ruedenberg from the 3 x 3 frame, the parity rule of
+docs/conventions.md), run per vertex in ``web/shaders/sh_table.vert.glsl``, the same GLSL as the viewer
+(``web/src/sh_table.js``). Modes (:data:`MODES`):
+
+* ``general``: view and lighting both change; steps 1-4 per vertex every frame.
+* ``fixed-light``: ``L_p`` computed once per lighting on the GPU (a PRECOMPUTE pass into a float32 vertex data
+  texture, texel ``p * n + i``), per frame steps 2-4.
+* ``fixed-view``: the table at ``v_p`` turned to the world frame, ``(S M)^T c(v_p)``, computed once per view (zero
+  where the vertex faces away); per frame one n-term dot product with the world lighting.
+
+The table is a texture array of n RGB16F layers (the ``.exr`` / viewer data: float16, grey tables repeated in R, G,
+B), bilinear and clamped to the edge, exactly ``SHTable.lookup(exact_azimuth=False)`` on the CPU. Shading is per
+vertex (Gouraud); :meth:`TableRenderer.probe` evaluates the same vertex shader at arbitrary frames (one point per
+frame into a float target) for tests.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Final, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from relight.errors import InputError
+from relight.gl import shaders
+from relight.gl.render import ORTHO_DISTANCE, create_context, view_projection
+from relight.view_maps import RIM_Z, check_layout
+
+Mode = Literal["general", "fixed-light", "fixed-view"]
+MODES: Final[tuple[Mode, ...]] = ("general", "fixed-light", "fixed-view")
+_MODE_DEFINE: Final = {"general": "MODE_GENERAL", "fixed-light": "MODE_FIXED_LIGHT", "fixed-view": "MODE_FIXED_VIEW"}
+#: Width of the float targets of probes and per-vertex data (texels); rows as needed.
+DATA_WIDTH: Final = 2048
+
+
+def shader_defines(order: int, layout: str, mode: Mode, target: str | None = None) -> dict[str, object]:
+    """The defines of ``sh_table.vert.glsl`` (also what ``web/src/sh_table.js`` passes)."""
+    if mode not in MODES:
+        raise InputError(f"unknown SH-table mode {mode!r}; valid modes are {list(MODES)}")
+    lay = check_layout(layout)
+    out: dict[str, object] = {"SH_ORDER": int(order), "RIM_Z": float(RIM_Z),
+                              "TABLE_PARABOLIC" if lay == "parabolic" else "TABLE_HEMI_OCTAHEDRAL": None,
+                              _MODE_DEFINE[mode]: None, "OUTPUT_LINEAR": None}
+    if target is not None:
+        out[target] = None
+    return out
+
+
+def vertex_tangents(frames: ArrayLike) -> NDArray[np.float32]:
+    """glTF-style tangents (N, 4) of frames (N, 3, 3) with rows (t, b, n): xyz = t, w = sign(det)."""
+    f = np.asarray(frames, dtype=np.float64)
+    w = np.where(np.linalg.det(f) < 0.0, -1.0, 1.0)
+    return np.ascontiguousarray(np.concatenate([f[:, 0], w[:, None]], axis=1), dtype="<f4")
+
+
+def _rows(count: int) -> int:
+    return max(1, -(-count // DATA_WIDTH))
+
+
+@dataclass
+class _Geometry:
+    count: int
+    vbo: Any
+    ibo: Any | None
+
+
+class TableRenderer:
+    """One SH table on the GPU (module docstring). ``coefficients`` (R, R, n, C) with C = 1 or 3 are rounded to
+    float16 on upload; :attr:`uploaded` holds the float16 values as float64 (the CPU reference's input)."""
+
+    def __init__(self, coefficients: ArrayLike, layout: str, *, ctx: Any = None) -> None:
+        import moderngl
+
+        from relight.envmap.exr import to_half_safe
+
+        c = np.asarray(coefficients, dtype=np.float64)
+        if c.ndim != 4 or c.shape[0] != c.shape[1] or c.shape[3] not in (1, 3):
+            raise InputError(f"table coefficients must be (R, R, n, 1 or 3), got shape {c.shape}")
+        order = int(round(np.sqrt(c.shape[2]))) - 1
+        if (order + 1) ** 2 != c.shape[2]:
+            raise InputError(f"a table holds (F+1)^2 coefficients per texel, got {c.shape[2]}")
+        self.order, self.layout, self.n = order, check_layout(layout), c.shape[2]
+        self.ctx = ctx if ctx is not None else create_context()
+        half = np.broadcast_to(to_half_safe(c)[0], c.shape[:3] + (3,))
+        self.uploaded = np.asarray(half, dtype=np.float64)
+        res = c.shape[0]
+        layers = np.ascontiguousarray(np.transpose(half, (2, 0, 1, 3)), dtype="<f2")  # (n, R rows, R, 3)
+        self.table = self.ctx.texture_array((res, res, self.n), 3, layers.tobytes(), dtype="f2")
+        self.table.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.table.repeat_x = self.table.repeat_y = False
+        self._progs: dict[tuple[Mode, str | None], Any] = {}
+        self._data: Any = None
+
+    def release(self) -> None:
+        self.table.release()
+        if self._data is not None:
+            self._data.release()
+        for prog in self._progs.values():
+            prog.release()
+
+    def program(self, mode: Mode, target: str | None = None) -> Any:
+        key = (mode, target)
+        if key not in self._progs:
+            defs = shader_defines(self.order, self.layout, mode, target)
+            self._progs[key] = self.ctx.program(
+                vertex_shader=shaders.build("sh_table.vert.glsl", defines=defs),
+                fragment_shader=shaders.build("sh_table.frag.glsl", defines={"OUTPUT_LINEAR": None}))
+        return self._progs[key]
+
+    # ------------------------------------------------------------------------------------------- geometry
+    def geometry(self, positions: ArrayLike, normals: ArrayLike, frames: ArrayLike,
+                 faces: ArrayLike | None = None) -> _Geometry:
+        """Vertex buffers (position, normal, tangent) and an optional index buffer for :meth:`draw`."""
+        pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        tan = vertex_tangents(frames)
+        if not pos.shape[0] == nrm.shape[0] == tan.shape[0]:
+            raise InputError("positions, normals and frames must have one row per vertex")
+        inter = np.concatenate([pos, nrm, tan], axis=1).astype("<f4")
+        ibo = None
+        if faces is not None:
+            ibo = self.ctx.buffer(np.ascontiguousarray(np.asarray(faces).reshape(-1), dtype="<u4").tobytes())
+        return _Geometry(pos.shape[0], self.ctx.buffer(inter.tobytes()), ibo)
+
+    def _vao(self, prog: Any, geo: _Geometry, indexed: bool) -> Any:
+        sizes = {"a_position": 3, "a_normal": 3, "a_tangent": 4}
+        used = [nm for nm in sizes if prog.get(nm, None) is not None]  # the linker drops unused attributes
+        fmt = " ".join(f"{k}f" if nm in used else f"{4 * k}x" for nm, k in sizes.items())
+        content = [(geo.vbo, fmt, *used)] if used else []  # fixed-view: everything comes from the data texture
+        if indexed and geo.ibo is not None:
+            return self.ctx.vertex_array(prog, content, index_buffer=geo.ibo, index_element_size=4)
+        return self.ctx.vertex_array(prog, content)
+
+    def _uniforms(self, prog: Any, view: ArrayLike, lighting: ArrayLike | None) -> None:
+        v = np.asarray(view, dtype=np.float64)
+        v = v / np.linalg.norm(v)
+        _set(prog, "u_view", tuple(float(x) for x in v))
+        if lighting is not None:
+            light = np.asarray(lighting, dtype=np.float64)
+            if light.ndim != 2 or light.shape[0] < self.n or light.shape[1] != 3:
+                raise InputError(f"lighting must be (>= {self.n}, 3) real coefficients, got shape {light.shape}")
+            _set(prog, "u_light", [tuple(float(x) for x in row) for row in light[: self.n]])
+        _set(prog, "u_table", 0)
+        _set(prog, "u_vertex_data", 1)
+        self.table.use(location=0)
+        if self._data is not None:
+            self._data.use(location=1)
+
+    def _points(self, prog: Any, geo: _Geometry, count: int, instances: int) -> NDArray[np.float32]:
+        import moderngl
+
+        rows = _rows(count)
+        _set(prog, "u_output_size", (DATA_WIDTH, rows))
+        tex = self.ctx.texture((DATA_WIDTH, rows), 4, dtype="f4")
+        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        vao = self._vao(prog, geo, indexed=False)
+        try:
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+            vao.render(moderngl.POINTS, vertices=geo.count, instances=instances)
+            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(-1, 4)
+        finally:
+            vao.release()
+            fbo.release()
+            tex.release()
+        return np.asarray(raw[:count, :3])
+
+    # ------------------------------------------------------------------------------------------ passes
+    def prepare(self, mode: Mode, geo: _Geometry, *, view: ArrayLike, lighting: ArrayLike) -> None:
+        """The fixed modes' per-vertex data (module docstring) into the vertex data texture; ``general``: none."""
+        if mode == "general":
+            return
+        prog = self.program(mode, "PRECOMPUTE")
+        self._uniforms(prog, view, lighting)
+        data = self._points(prog, geo, geo.count * self.n, self.n)
+        if self._data is not None:
+            self._data.release()
+        padded = np.zeros((_rows(data.shape[0]) * DATA_WIDTH, 4), dtype="<f4")
+        padded[: data.shape[0], :3] = data
+        self._data = self.ctx.texture((DATA_WIDTH, _rows(data.shape[0])), 4, padded.tobytes(), dtype="f4")
+        self._data.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+
+    def vertex_data(self) -> NDArray[np.float32]:
+        """The current per-vertex data texture as (texels, 3) (tests)."""
+        if self._data is None:
+            raise InputError("no per-vertex data: call prepare() with a fixed mode first")
+        return np.frombuffer(self._data.read(), dtype="<f4").reshape(-1, 4)[:, :3].copy()
+
+    def probe(self, mode: Mode, normals: ArrayLike, frames: ArrayLike, view: ArrayLike,
+              lighting: ArrayLike) -> NDArray[np.float32]:
+        """``Q`` (N, 3) at N points with world frames (N, 3, 3) and normals (N, 3), through ``mode``'s vertex shader
+        (the fixed modes prepare their per-vertex data from the same lighting and view first)."""
+        nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        geo = self.geometry(np.zeros_like(nrm), nrm, frames)
+        try:
+            self.prepare(mode, geo, view=view, lighting=lighting)
+            prog = self.program(mode, "PROBE")
+            self._uniforms(prog, view, lighting)
+            return self._points(prog, geo, geo.count, 1)
+        finally:
+            geo.vbo.release()
+
+    def draw(self, mode: Mode, geo: _Geometry, view: ArrayLike, lighting: ArrayLike | None, size: int,
+             *, background: float = 0.0) -> NDArray[np.float32]:
+        """A (size, size, 3) float32 image (row 0 at the top) of the geometry from the orthographic camera of
+        ``relight.gl.render`` looking along -view; the fixed modes use the data of the last :meth:`prepare`."""
+        import moderngl
+
+        if not 1 <= size <= 4096:
+            raise InputError(f"size must be in 1..4096, got {size}")
+        v = np.asarray(view, dtype=np.float64)
+        v = v / np.linalg.norm(v)
+        prog = self.program(mode)
+        self._uniforms(prog, v, lighting)
+        _set(prog, "u_view_projection", tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel()))
+        color = self.ctx.texture((size, size), 4, dtype="f4")
+        depth = self.ctx.depth_renderbuffer((size, size))
+        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
+        vao = self._vao(prog, geo, indexed=True)
+        try:
+            fbo.use()
+            fbo.clear(background, background, background, 1.0, depth=1.0)
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            vao.render(moderngl.TRIANGLES)
+            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+        finally:
+            vao.release()
+            fbo.release()
+            color.release()
+            depth.release()
+        return np.ascontiguousarray(raw[::-1, :, :3])
+
+
+def _set(prog: Any, name: str, value: Any) -> None:
+    """Set a uniform if the linker kept it."""
+    try:
+        member = prog[name]
+    except KeyError:
+        return
+    member.value = value
