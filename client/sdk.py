@@ -118,6 +118,19 @@ class _Calls:
         return _Call("POST", "/shrms", _model(JobPublic), {"json": body})
 
     @staticmethod
+    def submit_job(kind: str, request: dict[str, Any] | BaseModel) -> _Call[JobPublic]:
+        body = request.model_dump(mode="json", exclude_none=True) if isinstance(request, BaseModel) else request
+        return _Call("POST", "/jobs", _model(JobPublic), {"json": {"kind": kind, "request": body}})
+
+    @staticmethod
+    def job_result(job_id: str) -> _Call[dict[str, Any]]:
+        return _Call("GET", f"/jobs/{job_id}/result", lambda r: dict(r.json()))
+
+    @staticmethod
+    def job_file(job_id: str, name: str) -> _Call[bytes]:
+        return _Call("GET", f"/jobs/{job_id}/files/{name}", _bytes)
+
+    @staticmethod
     def get_job(job_id: str) -> _Call[JobPublic]:
         return _Call("GET", f"/jobs/{job_id}", _model(JobPublic))
 
@@ -267,6 +280,18 @@ class RelightClient:
                p_order: int | None = None, size: int | None = None) -> JobPublic:
         """Start (or join) a job; ``job.cached`` is True when the result existed already."""
         return self._do(_Calls.submit(_job_body(envmap, brdf, epsilon, order, p_order, size)))
+
+    def submit_job(self, kind: str, request: dict[str, Any] | BaseModel) -> JobPublic:
+        """Start (or join) a job of any kind (``POST /jobs``); ``request`` as the kind's own route takes it."""
+        return self._do(_Calls.submit_job(kind, request))
+
+    def job_result(self, job_id: str) -> dict[str, Any]:
+        """A succeeded job's JSON result (``GET /jobs/{id}/result``)."""
+        return self._do(_Calls.job_result(job_id))
+
+    def job_file(self, job_id: str, name: str) -> bytes:
+        """A file a succeeded job's result lists under ``files``."""
+        return self._do(_Calls.job_file(job_id, name))
 
     def get_job(self, job_id: str) -> JobPublic:
         return self._do(_Calls.get_job(job_id))
@@ -429,6 +454,15 @@ class AsyncRelightClient:
     async def submit(self, envmap: str, brdf: Spec, *, epsilon: float | None = None, order: int | None = None,
                      p_order: int | None = None, size: int | None = None) -> JobPublic:
         return await self._do(_Calls.submit(_job_body(envmap, brdf, epsilon, order, p_order, size)))
+
+    async def submit_job(self, kind: str, request: dict[str, Any] | BaseModel) -> JobPublic:
+        return await self._do(_Calls.submit_job(kind, request))
+
+    async def job_result(self, job_id: str) -> dict[str, Any]:
+        return await self._do(_Calls.job_result(job_id))
+
+    async def job_file(self, job_id: str, name: str) -> bytes:
+        return await self._do(_Calls.job_file(job_id, name))
 
     async def get_job(self, job_id: str) -> JobPublic:
         return await self._do(_Calls.get_job(job_id))

@@ -170,6 +170,18 @@ class PlanPublic(Public):
                                               "on this machine (relight.costmodel) or the built-in defaults")
 
 
+class JobSubmit(Strict):
+    """``POST /jobs``: a job of any registered kind; ``request`` is validated by the kind's own model (for ``shrm``
+    a ``ShrmCreate``, ``tradeoff`` a ``TradeoffCreate``, ``scene`` a ``SceneCreate``)."""
+
+    kind: str = Field(min_length=1, max_length=32, description="a job kind of the server (GET /jobs/kinds)")
+    request: dict[str, Any] = Field(description="the kind's request, as its own route takes it")
+
+
+class JobKindList(Public):
+    items: list[str] = Field(description="the job kinds POST /jobs takes")
+
+
 class JobParams(Public):
     epsilon: float | None = None
     order: int | None = None

@@ -1,6 +1,7 @@
 """Service settings from ``RELIGHT_*`` environment variables (pydantic-settings), read once per process.
 
-List settings (``RELIGHT_API_KEY_HASHES``, ``RELIGHT_CORS_ORIGINS``) are comma-separated.
+List settings (``RELIGHT_API_KEY_HASHES``, ``RELIGHT_CORS_ORIGINS``, ``RELIGHT_JOB_KIND_MODULES``) are
+comma-separated.
 """
 
 from __future__ import annotations
@@ -42,6 +43,11 @@ class Settings(BaseSettings):
     )
     cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
 
+    job_kind_modules: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description="modules imported at start-up that register job kinds from outside this "
+                                          "package (relight.server.services.kinds); the worker processes must be "
+                                          "able to import their task functions too")
+
     preload_dir: Path | None = Field(None, description="environment maps ingested at start-up")
     progress_interval_s: float = Field(0.25, ge=0, description="least seconds between stored progress updates")
     log_level: str = "info"
@@ -49,7 +55,7 @@ class Settings(BaseSettings):
     #: TEST ONLY: seconds each job waits (reporting progress) before computing, so tests can act "mid-job".
     test_job_delay_s: float = Field(0.0, ge=0, description="TEST ONLY: artificial delay per job")
 
-    @field_validator("api_key_hashes", "cors_origins", mode="before")
+    @field_validator("api_key_hashes", "cors_origins", "job_kind_modules", mode="before")
     @classmethod
     def _split(cls, v: object) -> object:
         if isinstance(v, str):

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import asyncio
+import importlib
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +29,9 @@ from relight.worker.progress import TOPIC
 log = logging.getLogger("relight.server")
 
 PRELOAD_SUFFIXES = (".exr", ".hdr", ".png", ".jpg", ".jpeg")
+#: Modules that only register job kinds (no service of their own): imported at start-up, before recovery. The
+#: kinds with a service (shrm, tradeoff, scene) register when their service's module is imported above.
+KIND_MODULES: tuple[str, ...] = ()
 
 
 @dataclass
@@ -50,6 +54,8 @@ class Services:
 
     @classmethod
     async def start(cls, settings: Settings) -> Services:
+        for module in (*KIND_MODULES, *settings.job_kind_modules):
+            importlib.import_module(module)  # registers its kinds (relight.server.services.kinds.register)
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         db = Database(settings.resolved_database_url)
         migrated = await in_thread(db.create_all)

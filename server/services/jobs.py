@@ -38,7 +38,7 @@ from relight.server.problems import Conflict, NotFound, TooManyJobs
 from relight.server.services.base import aware, in_thread, utc
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.events import EventHub
-from relight.server.services.kinds import JobKind, kind_of
+from relight.server.services.kinds import JobKind, kind_of, links_of
 from relight.server.services.metrics import Metrics
 from relight.server.services.runner import failure_of, run_with_resubmits
 from relight.worker.blobs import BlobStore
@@ -93,11 +93,10 @@ class JobService:
         return row
 
     def public(self, row: Job, *, cached: bool = False) -> JobPublic:
-        kind = kind_of(row.kind)
         req = row.request or {}
         links = {"self": f"/jobs/{row.id}", "events": f"/jobs/{row.id}/events"}
         if row.state == JobState.succeeded:
-            links |= kind.links(row.id, row.result)
+            links |= links_of(row.kind)(row.id, row.result)
         shrm = row.kind == "shrm"
         envmap = req.get("envmap") or (req.get("scene") or {}).get("environment")
         pub = JobPublic(

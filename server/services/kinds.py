@@ -1,22 +1,30 @@
 """The registry of job kinds: what the one job system (:mod:`relight.server.services.jobs`) needs to know about a kind.
 
 A kind is a task function in ``worker/`` (``task(ctx, request) -> result``, :data:`relight.worker.progress.Task`)
-plus a :class:`JobKind` registered here. Everything else is shared by every kind: the row in the job table, the id
-(the SHA-256 of the canonical request, :meth:`JobKind.job_id`), submission to Dask through
-:func:`relight.worker.progress.run_job`, progress, ``GET /jobs/{id}``, ``GET /jobs/{id}/events`` (SSE),
-``DELETE /jobs/{id}``, the active-job cap and recovery at start-up. ``server/README.md`` shows a registration.
+plus a :class:`JobKind` registered here. Everything else is shared by every kind: submission through
+``POST /jobs`` (``{"kind": ..., "request": {...}}``: the request validated by the kind's pydantic model
+:attr:`JobKind.request`, made canonical by :attr:`JobKind.prepare`), the row in the job table, the id (the SHA-256
+of the canonical request, :meth:`JobKind.job_id`), submission to Dask through :func:`relight.worker.progress.run_job`,
+progress, ``GET /jobs/{id}``, ``GET /jobs/{id}/events`` (SSE), ``GET /jobs/{id}/result`` and
+``GET /jobs/{id}/files/{name}``, ``DELETE /jobs/{id}``, the active-job cap and recovery at start-up.
+``server/README.md`` shows a registration.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+from pydantic import BaseModel
 
 import relight
 from relight.server.db import Job
 from relight.server.services.base import content_id
 from relight.worker.progress import Task
+
+if TYPE_CHECKING:
+    from relight.server.state import Services
 
 #: ``links(job_id, result)``: result links of a succeeded job, added to its ``links``.
 Links = Callable[[str, dict[str, Any] | None], dict[str, str]]
@@ -24,13 +32,44 @@ Links = Callable[[str, dict[str, Any] | None], dict[str, str]]
 StoreResult = Callable[[Job, dict[str, Any]], None]
 
 
+@dataclass(frozen=True)
+class Submission:
+    """What :attr:`JobKind.prepare` may return instead of a plain canonical request.
+
+    ``job_id`` overrides the kind's id rule; ``predicted`` (JSON) is stored on a new row; ``intact(row)`` says
+    whether a succeeded job's stored result is still usable (else the job is computed again).
+    """
+
+    request: dict[str, Any]
+    job_id: str | None = None
+    predicted: dict[str, Any] | None = None
+    intact: Callable[[Job], Awaitable[bool]] | None = None
+
+
+#: ``prepare(create, services)``: the validated request model -> the canonical request (or a :class:`Submission`).
+#: Resolve references here (an envmap id that must exist, a BRDF written three ways): 4xx problems raised here
+#: reach the client as they are.
+Prepare = Callable[[Any, "Services"], Awaitable["dict[str, Any] | Submission"]]
+
+
 def keep_result(row: Job, result: dict[str, Any]) -> None:
     """The default: the task's (small, JSON) result is the row's ``result``."""
     row.result = result
 
 
-def no_links(job_id: str, result: dict[str, Any] | None) -> dict[str, str]:
-    return {}
+def job_links(job_id: str, result: dict[str, Any] | None) -> dict[str, str]:
+    """The default links of a succeeded job: its result, and each file a result lists under ``files``
+    (``{name: {"sha256": ..., "media_type": ...}}``, served verified by ``GET /jobs/{id}/files/{name}``)."""
+    links = {"result": f"/jobs/{job_id}/result"}
+    for name in ((result or {}).get("files") or {}):
+        links[name] = f"/jobs/{job_id}/files/{name}"
+    return links
+
+
+async def dump_request(create: BaseModel, services: Services) -> dict[str, Any]:
+    """The default :attr:`JobKind.prepare`: the validated model as JSON (defaults filled in, so that two ways of
+    writing one request share one id)."""
+    return create.model_dump(mode="json")
 
 
 @dataclass(frozen=True)
@@ -39,10 +78,14 @@ class JobKind:
 
     name: str
     task: Task
+    #: The pydantic model ``POST /jobs`` validates the kind's ``request`` with (None: no generic submission; the
+    #: kind is submitted by its own service).
+    request: type[BaseModel] | None = None
+    prepare: Prepare = field(default=dump_request)
     #: Version of this kind's result format, part of its ids: a result stored in an older format is never served
     #: for a new request (it is computed again under the new id).
     result_version: int = 1
-    links: Links = field(default=no_links)
+    links: Links = field(default=job_links)
     store_result: StoreResult = field(default=keep_result)
 
     def job_id(self, request: dict[str, Any]) -> str:
@@ -72,3 +115,10 @@ def kind_of(name: str) -> JobKind:
 
 def kinds() -> list[str]:
     return sorted(_REGISTRY)
+
+
+def links_of(name: str) -> Links:
+    """The links rule of the kind ``name``; the default one for a kind this process does not know (a row written by
+    a server that loaded a plugin this one does not: it is still listed)."""
+    known = _REGISTRY.get(name)
+    return known.links if known is not None else job_links

@@ -13,20 +13,23 @@ store; ``GET /scenes/{id}/files/{name}`` serves them verified.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from relight.contract.models import JobState, SceneCreate, ScenePublic
+from relight.contract.models import SceneCreate, ScenePublic
 from relight.errors import InputError
 from relight.server.db import Job
-from relight.server.problems import Conflict, NotFound, Unprocessable
+from relight.server.problems import Unprocessable
+from relight.server.services import submissions
 from relight.server.services.base import aware, in_thread, utc
 from relight.server.services.brdfs import BrdfService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.jobs import JobService
 from relight.server.services.kinds import JobKind, register
 from relight.worker.analysis import run_scene
-from relight.worker.blobs import BlobCorrupt, BlobMissing
 from relight.worker.specs import to_core
+
+if TYPE_CHECKING:
+    from relight.server.state import Services
 
 
 def _links(job_id: str, result: dict[str, Any] | None) -> dict[str, str]:
@@ -36,8 +39,12 @@ def _links(job_id: str, result: dict[str, Any] | None) -> dict[str, str]:
     return links
 
 
+async def _prepare(create: SceneCreate, services: Services) -> dict[str, Any]:
+    return await services.scenes.canonical(create)
+
+
 SCENE = register(JobKind(
-    "scene", run_scene,
+    "scene", run_scene, request=SceneCreate, prepare=_prepare,
     result_version=2,  # 2: per-object float16 textures for the viewer ({name}.coefficients.bin, .texture.json)
     links=_links,
 ))
@@ -63,7 +70,8 @@ class SceneService:
             links=links,
         )
 
-    async def submit(self, create: SceneCreate) -> tuple[ScenePublic, int]:
+    async def canonical(self, create: SceneCreate) -> dict[str, Any]:
+        """The canonical request of ``create``: materials by canonical spec, validated by the core's parser."""
         env = await self.envmaps.get(create.environment)
         await self.envmaps.input_ok(env.id)
         objects = []
@@ -87,7 +95,10 @@ class SceneService:
             await in_thread(check)
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
-        row, status = await self.jobs.submit(SCENE, {"scene": scene, "preview_size": create.preview_size})
+        return {"scene": scene, "preview_size": create.preview_size}
+
+    async def submit(self, create: SceneCreate) -> tuple[ScenePublic, int]:
+        row, status = await self.jobs.submit(SCENE, await self.canonical(create))
         return self.public(row), status
 
     async def get(self, scene_id: str) -> ScenePublic:
@@ -95,14 +106,4 @@ class SceneService:
 
     async def file(self, scene_id: str, name: str) -> tuple[Path, str, str]:
         """(verified path, digest, media type) of one output file of a finished scene."""
-        row = await self.jobs.row(scene_id, SCENE.name)
-        if row.state != JobState.succeeded:
-            raise Conflict(f"scene {scene_id} is {row.state}; it has no files yet", state=row.state)
-        info = ((row.result or {}).get("files") or {}).get(name)
-        if info is None:
-            raise NotFound(f"scene {scene_id} has no file {name!r}")
-        try:
-            path = await in_thread(self.store.verified_path, str(info["sha256"]))
-        except (BlobMissing, BlobCorrupt) as exc:
-            raise NotFound(f"the file {name!r} of scene {scene_id} is gone ({exc}); submit the scene again") from None
-        return path, str(info["sha256"]), str(info.get("media_type", "application/octet-stream"))
+        return await submissions.file(self.jobs, scene_id, name, SCENE.name)

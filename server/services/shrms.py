@@ -15,7 +15,7 @@ import asyncio
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from cachetools import LRUCache
 
@@ -27,11 +27,14 @@ from relight.server.problems import Conflict, Unavailable, Unprocessable
 from relight.server.services.base import aware, content_id, in_thread
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.jobs import JobService
-from relight.server.services.kinds import JobKind, register
+from relight.server.services.kinds import JobKind, Submission, register
 from relight.server.services.plans import PlanService
 from relight.worker import tasks
 from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
 from relight.worker.results import job_ref, load_manifest
+
+if TYPE_CHECKING:
+    from relight.server.state import Services
 
 log = logging.getLogger("relight.server")
 
@@ -61,7 +64,12 @@ def _store_result(row: Job, result: dict[str, Any]) -> None:
     row.result = {"manifest_sha256": result["manifest_sha256"], "reused": bool(result.get("reused"))}
 
 
-SHRM = register(JobKind("shrm", tasks.compute_shrm, links=_links, store_result=_store_result))
+async def _prepare(create: ShrmCreate, services: Services) -> Submission:
+    return await services.shrms.prepare(create)
+
+
+SHRM = register(JobKind("shrm", tasks.compute_shrm, request=ShrmCreate, prepare=_prepare, links=_links,
+                        store_result=_store_result))
 
 
 @dataclass(frozen=True)
@@ -90,8 +98,9 @@ class ShrmService:
         self._manifests.pop(job_id, None)
         await in_thread(self.store.delete_ref, job_ref(job_id))
 
-    async def submit(self, create: ShrmCreate) -> tuple[JobPublic, int]:
-        """Create (or find) the job for ``create``; returns the job and 202 (work pending) or 200 (finished)."""
+    async def prepare(self, create: ShrmCreate) -> Submission:
+        """The canonical request of ``create``, its id (input digests, canonical parameters, algorithm version) and,
+        for a new job, the plan's prediction."""
         prep = await self.plans.prepare(create)
         await self.envmaps.input_ok(prep.envmap.id)
         request = {"envmap": prep.envmap.id, "brdf": prep.brdf.id, "brdf_spec": prep.brdf.spec,
@@ -101,8 +110,13 @@ class ShrmService:
             plan = await self.plans.plan_prepared(prep)
             predicted = Prediction(seconds=plan.predicted_seconds, rms_error=plan.predicted_error.rms_min_of_errors,
                                    orders=plan.orders, representation=plan.representation).model_dump(mode="json")
-        row, status = await self.jobs.submit(SHRM, request, job_id=prep.job_id, predicted=predicted,
-                                             intact=self._result_intact)
+        return Submission(request, job_id=prep.job_id, predicted=predicted, intact=self._result_intact)
+
+    async def submit(self, create: ShrmCreate) -> tuple[JobPublic, int]:
+        """Create (or find) the job for ``create``; returns the job and 202 (work pending) or 200 (finished)."""
+        sub = await self.prepare(create)
+        row, status = await self.jobs.submit(SHRM, sub.request, job_id=sub.job_id, predicted=sub.predicted,
+                                             intact=sub.intact)
         return self.jobs.public(row, cached=status == 200 and row.state == JobState.succeeded), status
 
     async def _result_intact(self, row: Job) -> bool:

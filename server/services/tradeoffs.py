@@ -14,7 +14,7 @@ behind ``/plan``.
 from __future__ import annotations
 
 import logging
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from relight.contract.models import TradeoffCreate, TradeoffPublic
 from relight.server.cluster import Cluster
@@ -27,13 +27,20 @@ from relight.server.services.jobs import JobService
 from relight.server.services.kinds import JobKind, register
 from relight.worker.analysis import compute_tradeoff
 
+if TYPE_CHECKING:
+    from relight.server.state import Services
+
 log = logging.getLogger("relight.server")
 
 #: Server-side caps of a sweep (each point runs both an SHRM and an angular reference).
 MAX_TRADEOFF_ROWS: Final = 256
 
+async def _prepare(create: TradeoffCreate, services: Services) -> dict[str, Any]:
+    return await services.tradeoffs.canonical(create)
+
+
 TRADEOFF = register(JobKind(
-    "tradeoff", compute_tradeoff,
+    "tradeoff", compute_tradeoff, request=TradeoffCreate, prepare=_prepare,
     result_version=2,  # 2: Mitsuba 3 errors (points' mitsuba_error, meta.mitsuba)
     links=lambda job_id, result: {"result": f"/tradeoffs/{job_id}"},
 ))
@@ -57,7 +64,8 @@ class TradeoffService:
             finished_at=aware(row.finished_at), links=links,
         )
 
-    async def submit(self, create: TradeoffCreate) -> tuple[TradeoffPublic, int]:
+    async def canonical(self, create: TradeoffCreate) -> dict[str, Any]:
+        """The canonical request of ``create`` (the map checked, the BRDF resolved, defaults and orders fixed)."""
         env = await self.envmaps.get(create.envmap)
         await self.envmaps.input_ok(env.id)
         brdf = await self.brdfs.resolve(create.brdf)
@@ -75,8 +83,10 @@ class TradeoffService:
                   "epsilons": sorted(set(create.epsilons), reverse=True) if create.epsilons else None,
                   "truncations": sorted(set(create.truncations), reverse=True) if create.truncations is not None
                   else None}
-        request = {"envmap": env.id, "brdf_id": brdf.id, "brdf": brdf.spec, "params": params}
-        row, status = await self.jobs.submit(TRADEOFF, request)
+        return {"envmap": env.id, "brdf_id": brdf.id, "brdf": brdf.spec, "params": params}
+
+    async def submit(self, create: TradeoffCreate) -> tuple[TradeoffPublic, int]:
+        row, status = await self.jobs.submit(TRADEOFF, await self.canonical(create))
         return self.public(row), status
 
     async def get(self, job_id: str) -> TradeoffPublic:
