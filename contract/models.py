@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from datetime import datetime
 from enum import StrEnum
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, WithJsonSchema, model_validator
 
@@ -87,6 +87,58 @@ class EnvmapPublic(Public):
 
 class EnvmapList(Public):
     items: list[EnvmapPublic]
+
+
+# -------------------------------------------------------------------------------------------------- meshes
+class MeshPublic(Public):
+    """A mesh welded into relight's canonical vertex order (``docs/conventions.md``, "Meshes")."""
+
+    id: Digest = Field(description="SHA-256 of the uploaded bytes")
+    name: str | None = None
+    format: str | None = Field(None, description="obj, gltf or glb")
+    bytes: int
+    vertices: int = Field(description="welded vertices, in the order every per-vertex result uses")
+    faces: int
+    bounds: dict[str, list[float]]
+    bounding_radius: float
+    surface_area: float
+    watertight: bool
+    tangent_source: str = Field(description="file (glTF TANGENT), uv (texture coordinates) or field")
+    normal_weighting: str
+    defects: dict[str, Any] = Field(description="boundary / non-manifold / inconsistently oriented edges, "
+                                    "degenerate and collapsed faces, welded and unreferenced vertices (reported, "
+                                    "not refused)")
+    geometry: dict[str, Any] = Field(description="geometry.bin: sha256, byte size and the offset, dtype and shape "
+                                     "of positions, normals, tangents and indices")
+    created_at: datetime
+    links: dict[str, str] = {}
+
+
+class MeshList(Public):
+    items: list[MeshPublic]
+
+
+VisibilityKind = Literal["visibility", "diffuse_transfer", "shadow_matrix"]
+
+
+class VisibilityCreate(Strict):
+    """Per-vertex SH visibility / diffuse transfer / shadow matrix of a mesh by ray casting (``relight.visibility``;
+    order F means l <= F, (F+1)^2 coefficients)."""
+
+    mesh: Digest = Field(description="a mesh id from POST /meshes")
+    order: int = Field(3, ge=0, le=8, description="SH order F")
+    rays: int = Field(1024, ge=16, le=65536, description="rays per vertex (spherical Fibonacci, randomly rotated)")
+    kind: VisibilityKind = "visibility"
+    bounces: int = Field(0, ge=0, le=8, description="interreflection bounces (diffuse_transfer only)")
+    albedo: float = Field(0.8, ge=0.0, le=1.0, description="albedo of the interreflections")
+    seed: int = Field(0, ge=0, lt=2**31, description="rotation of the direction set")
+    block: int = Field(1024, ge=64, le=65536, description="vertices per block (the unit fanned out over workers)")
+
+    @model_validator(mode="after")
+    def _bounces(self) -> VisibilityCreate:
+        if self.bounces and self.kind != "diffuse_transfer":
+            raise ValueError(f"bounces ({self.bounces}) need kind 'diffuse_transfer', got {self.kind!r}")
+        return self
 
 
 # -------------------------------------------------------------------------------------------------- brdfs
@@ -205,6 +257,8 @@ class Measurement(Public):
     rms_bound: float | None = Field(None, description="App. B conservative bound on the relative RMS error")
     orders: Orders | None = None
     reused: bool = False
+    processes: int | None = Field(None, description="worker processes that computed parts of the job (kinds fanned "
+                                  "out by blocks)")
 
 
 class JobPublic(Public):

@@ -244,6 +244,25 @@ class TransferResult:
     manifest: dict[str, Any]
 
 
+def run_manifest(mesh: TriangleMesh, settings: TransferSettings, arrays: dict[str, FloatArray], blocks: int,
+                 passes: int) -> dict[str, Any]:
+    """What a result was computed with and its RMS Monte Carlo errors (over vertices, of each ``*_error`` array's
+    per-vertex norm): the reproducible part of a manifest (no timings)."""
+    s = settings
+
+    def rms(key: str) -> float:
+        e = arrays[key].reshape(mesh.n_vertices, -1)
+        return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
+
+    return {
+        "kind": s.kind, "order": s.order, "coefficients": (s.order + 1) ** 2, "rays": s.rays,
+        "sampling": s.sampling, "seed": s.seed, "bounces": s.bounces, "albedo": s.albedo if s.bounces else None,
+        "vertices": mesh.n_vertices, "faces": mesh.n_faces, "blocks": blocks, "block": s.block, "passes": passes,
+        "ray_offset": ray_offset(mesh.positions), "basis": "relight real SH, world frame, index l^2 + l + m",
+        "monte_carlo_error_rms": {key: rms(key) for key in sorted(arrays) if key.endswith("_error")},
+    }
+
+
 def compute_transfer(mesh: TriangleMesh, settings: TransferSettings | None = None) -> TransferResult:
     """Every block of the mesh, combined (module docstring); bounces run one pass over the blocks each."""
     import time
@@ -265,18 +284,6 @@ def compute_transfer(mesh: TriangleMesh, settings: TransferSettings | None = Non
             passes += 1
     seconds = time.perf_counter() - t0
     rays = mesh.n_vertices * s.rays * passes
-
-    def rms(key: str) -> float:
-        e = arrays[key].reshape(mesh.n_vertices, -1)
-        return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
-
-    errors = {key: rms(key) for key in arrays if key.endswith("_error")}
-    manifest = {
-        "kind": s.kind, "order": s.order, "coefficients": (s.order + 1) ** 2, "rays": s.rays,
-        "sampling": s.sampling, "seed": s.seed, "bounces": s.bounces, "albedo": s.albedo if s.bounces else None,
-        "vertices": mesh.n_vertices, "faces": mesh.n_faces, "blocks": len(ranges), "block": s.block,
-        "ray_offset": ray_offset(mesh.positions), "basis": "relight real SH, world frame, index l^2 + l + m",
-        "monte_carlo_error_rms": errors, "seconds": seconds, "rays_cast": rays,
-        "mrays_per_second": rays / seconds / 1e6 if seconds > 0 else None,
-    }
+    manifest = run_manifest(mesh, s, arrays, len(ranges), passes)
+    manifest.update(seconds=seconds, rays_cast=rays, mrays_per_second=rays / seconds / 1e6 if seconds > 0 else None)
     return TransferResult({k: np.asarray(v, dtype=np.float32) for k, v in arrays.items()}, manifest)

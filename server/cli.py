@@ -32,6 +32,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
         overrides["preload_dir"] = Path(args.preload)
     elif "RELIGHT_PRELOAD_DIR" not in os.environ:
         overrides["preload_dir"] = sample_envmaps()  # the samples installed with relight (package data)
+    if not args.no_preload and "RELIGHT_PRELOAD_MESHES" not in os.environ:
+        from relight.mesh.load import SAMPLES
+
+        overrides["preload_meshes"] = list(SAMPLES)  # bunny, teapot and the generated bunny-100k
     try:
         serve(Settings(**overrides), args.host, args.port)
     except KeyboardInterrupt:
@@ -49,5 +53,5 @@ def register(sub: Any) -> None:
     p.add_argument("--scheduler", help="connect to this Dask scheduler instead of starting a local cluster")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--preload", help="directory of environment maps to ingest at start-up (default: the samples)")
-    g.add_argument("--no-preload", action="store_true", help="do not ingest the sample maps")
+    g.add_argument("--no-preload", action="store_true", help="do not ingest the sample maps and meshes")
     p.set_defaults(func=cmd_serve)

@@ -49,13 +49,18 @@ class Settings(BaseSettings):
                                           "able to import their task functions too")
 
     preload_dir: Path | None = Field(None, description="environment maps ingested at start-up")
+    preload_meshes: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description="sample meshes ingested at start-up (bunny, teapot, bunny-100k)")
+    max_mesh_bytes: int = Field(64 * MiB, ge=1, description="largest mesh file (also capped by max_upload_bytes)")
+    max_mesh_vertices: int = Field(2_000_000, ge=3, description="most vertices a mesh file may declare")
+    max_mesh_faces: int = Field(4_000_000, ge=1, description="most triangles a mesh file may declare")
     progress_interval_s: float = Field(0.25, ge=0, description="least seconds between stored progress updates")
     log_level: str = "info"
 
     #: TEST ONLY: seconds each job waits (reporting progress) before computing, so tests can act "mid-job".
     test_job_delay_s: float = Field(0.0, ge=0, description="TEST ONLY: artificial delay per job")
 
-    @field_validator("api_key_hashes", "cors_origins", "job_kind_modules", mode="before")
+    @field_validator("api_key_hashes", "cors_origins", "job_kind_modules", "preload_meshes", mode="before")
     @classmethod
     def _split(cls, v: object) -> object:
         if isinstance(v, str):

@@ -35,6 +35,19 @@ class Envmap(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
+class Mesh(Base):
+    """An uploaded (or sample) mesh: ``id`` is the SHA-256 of the file's bytes, ``info`` its metadata with the
+    digest of its canonical ``geometry.bin`` (:mod:`relight.server.services.meshes`)."""
+
+    __tablename__ = "meshes"
+
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    name: Mapped[str | None] = mapped_column(String(255))
+    bytes: Mapped[int] = mapped_column(Integer)
+    info: Mapped[dict[str, Any]] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
 class Brdf(Base):
     __tablename__ = "brdfs"
 

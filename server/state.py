@@ -17,12 +17,14 @@ from relight.server.services.brdfs import BrdfService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.events import EventHub
 from relight.server.services.jobs import JobService
+from relight.server.services.meshes import MeshService
 from relight.server.services.metrics import Metrics
 from relight.server.services.plans import PlanService
 from relight.server.services.render import RenderService
 from relight.server.services.scenes import SceneService
 from relight.server.services.shrms import ShrmService
 from relight.server.services.tradeoffs import TradeoffService
+from relight.server.services.visibility import VisibilityService
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import TOPIC
 
@@ -50,6 +52,8 @@ class Services:
     tradeoffs: TradeoffService
     scenes: SceneService
     render: RenderService
+    meshes: MeshService
+    visibility: VisibilityService
     background: list[asyncio.Task[None]] = field(default_factory=list)
 
     @classmethod
@@ -69,15 +73,19 @@ class Services:
         brdfs = BrdfService(settings, db, store)
         plans = PlanService(settings, db, store, envmaps, brdfs)
         jobs = JobService(settings, db, store, cluster, hub, metrics, envmaps)
+        meshes = MeshService(settings, db, store, cluster, metrics)
         self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs,
                    shrms=ShrmService(jobs, plans, envmaps, store, cluster),
                    tradeoffs=TradeoffService(jobs, envmaps, brdfs), scenes=SceneService(jobs, envmaps, brdfs),
-                   render=RenderService())
+                   render=RenderService(), meshes=meshes, visibility=VisibilityService(jobs, meshes, store))
         jobs.start()
         cluster.subscribe(TOPIC, jobs.on_event)
         await jobs.resume()  # every kind: the kinds registered themselves when their services were imported
         if settings.preload_dir is not None:
             self.background.append(asyncio.create_task(self._preload(settings.preload_dir), name="relight-preload"))
+        if settings.preload_meshes:
+            self.background.append(asyncio.create_task(self._preload_meshes(settings.preload_meshes),
+                                                       name="relight-preload-meshes"))
         return self
 
     async def _preload(self, directory: Path) -> None:
@@ -91,6 +99,16 @@ class Services:
                 log.info("preloaded %s as %s%s", path.name, env.id, "" if created else " (known)")
             except ProblemError as exc:
                 log.warning("preloading %s: %s", path, exc.detail)
+
+    async def _preload_meshes(self, names: list[str]) -> None:
+        from relight.server.problems import ProblemError
+
+        for name in names:
+            try:
+                mesh, created = await self.meshes.ingest_sample(name)
+                log.info("preloaded mesh %s as %s%s", name, mesh.id, "" if created else " (known)")
+            except ProblemError as exc:
+                log.warning("preloading mesh %s: %s", name, exc.detail)
 
     async def stop(self) -> None:
         for t in self.background:

@@ -272,3 +272,30 @@ def read_gltf_bytes(data: bytes, caps: Caps | None = None, name: str = "<gltf>",
     return RawMesh(positions=all_pos, faces=np.concatenate(faces).astype(np.intp),
                    corner_uvs=np.concatenate(uvs) if have_uv else None,
                    tangents=np.concatenate(tangents) if have_tan else None, source=name)
+
+
+def write_glb(positions: NDArray[np.floating], faces: NDArray[np.integer]) -> bytes:
+    """A minimal GLB 2.0 file (one mesh, one node, one triangle primitive: float32 ``POSITION`` with its min/max,
+    uint32 indices) — how the generated sample meshes are stored as uploads, and a writer for tests."""
+    pos = np.ascontiguousarray(positions, dtype="<f4")
+    idx = np.ascontiguousarray(faces, dtype="<u4")
+    pos_bytes, idx_bytes = pos.tobytes(), idx.tobytes()
+    binary = pos_bytes + idx_bytes
+    doc = {
+        "asset": {"version": "2.0", "generator": "relight"},
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": TRIANGLES}]}],
+        "buffers": [{"byteLength": len(binary)}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": len(pos_bytes)},
+                        {"buffer": 0, "byteOffset": len(pos_bytes), "byteLength": len(idx_bytes)}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": int(pos.shape[0]), "type": "VEC3",
+             "min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()},
+            {"bufferView": 1, "componentType": 5125, "count": int(idx.size), "type": "SCALAR"}],
+    }
+    js = json.dumps(doc, separators=(",", ":")).encode()
+    js += b" " * (-len(js) % 4)  # chunks are 4-byte aligned (§4.4.3.1): JSON padded with spaces, BIN with zeros
+    binary += b"\0" * (-len(binary) % 4)
+    total = 12 + 8 + len(js) + 8 + len(binary)
+    return (struct.pack("<III", GLB_MAGIC, 2, total) + struct.pack("<II", len(js), CHUNK_JSON) + js
+            + struct.pack("<II", len(binary), CHUNK_BIN) + binary)

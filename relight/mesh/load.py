@@ -5,7 +5,8 @@ under :class:`relight.mesh.model.Caps`, then :func:`build` welds, orders, comput
 defects report. The samples are ``data/meshes/bunny.obj`` (1839 vertices), ``teapot.obj`` (792) and
 ``bunny-100k``: the bunny with every triangle split in four three times (``trimesh.remesh.subdivide``, midpoint
 subdivision: the surface is unchanged, 1839 -> 116 K vertices), generated on the fly and deterministic, for timing
-at the papers' scale (35 K-152 K vertices).
+at the papers' scale (35 K-152 K vertices). :func:`sample_file` gives each sample as the file bytes the service
+ingests (the generated one as a GLB); :func:`sniff` tells the formats apart from the first bytes.
 """
 
 from __future__ import annotations
@@ -68,6 +69,28 @@ def build(raw: RawMesh, weighting: Weighting = "area") -> TriangleMesh:
                         tangent_source=source, defects=report, source=raw.source)
 
 
+#: Bytes :func:`sniff` looks at.
+SNIFF_BYTES: Final = 4096
+
+
+def sniff(head: bytes) -> str | None:
+    """The mesh format of a file from its first bytes: ``"glb"`` (magic ``glTF``), ``"gltf"`` (a JSON object),
+    ``"obj"`` (text: no NUL byte, UTF-8 apart from a character cut at the end), else None."""
+    if head[:4] == b"glTF":
+        return "glb"
+    text = head.lstrip()
+    if text.startswith(b"{"):
+        return "gltf"
+    if b"\0" in head:
+        return None
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(head) - 3:  # a multi-byte character cut by the sniff window is fine
+            return None
+    return "obj"
+
+
 def decode(data: bytes, name: str, caps: Caps | None = None, base_dir: Path | None = None) -> RawMesh:
     """Decode mesh bytes: GLB by its magic, glTF JSON by a leading ``{`` or a ``.gltf`` name, else OBJ."""
     head = data[:64].lstrip()
@@ -90,18 +113,37 @@ def load_mesh(path: str | Path, caps: Caps | None = None, weighting: Weighting =
     return build(decode(p.read_bytes(), str(p), caps, base_dir=p.parent), weighting)
 
 
+def _subdivided(name: str, weighting: Weighting) -> RawMesh:
+    filename, subdivisions = SAMPLES[name]
+    raw = read_obj_bytes((MESH_DIR / filename).read_bytes(), name=filename)
+    if not subdivisions:
+        return raw
+    import trimesh.remesh
+
+    mesh = build(raw, weighting)
+    v, f = mesh.positions, mesh.faces
+    for _ in range(subdivisions):
+        v, f = trimesh.remesh.subdivide(v, f)  # type: ignore[no-untyped-call]
+    return RawMesh(positions=np.asarray(v, dtype=np.float64), faces=np.asarray(f, dtype=np.intp), source=name)
+
+
 def sample_mesh(name: str, weighting: Weighting = "area") -> TriangleMesh:
     """A sample mesh (module docstring) by name."""
     if name not in SAMPLES:
         raise InputError(f"unknown sample mesh {name!r}; expected one of {', '.join(SAMPLES)}")
-    filename, subdivisions = SAMPLES[name]
-    raw = read_obj_bytes((MESH_DIR / filename).read_bytes(), name=filename)
-    if subdivisions:
-        import trimesh.remesh
+    return build(_subdivided(name, weighting), weighting)
 
-        mesh = build(raw, weighting)
-        v, f = mesh.positions, mesh.faces
-        for _ in range(subdivisions):
-            v, f = trimesh.remesh.subdivide(v, f)  # type: ignore[no-untyped-call]
-        raw = RawMesh(positions=np.asarray(v, dtype=np.float64), faces=np.asarray(f, dtype=np.intp), source=name)
-    return build(raw, weighting)
+
+def sample_file(name: str) -> tuple[str, bytes]:
+    """A sample as the file the service ingests like any upload: ``(file name, bytes)`` — the OBJ itself, or for
+    a subdivided sample a GLB of the subdivided (unwelded, float32) triangles, generated deterministically (the
+    same bytes, hence the same id, on every machine with the same NumPy and trimesh)."""
+    if name not in SAMPLES:
+        raise InputError(f"unknown sample mesh {name!r}; expected one of {', '.join(SAMPLES)}")
+    filename, subdivisions = SAMPLES[name]
+    if not subdivisions:
+        return filename, (MESH_DIR / filename).read_bytes()
+    from relight.mesh.gltf import write_glb
+
+    raw = _subdivided(name, "area")
+    return f"{name}.glb", write_glb(raw.positions, raw.faces)

@@ -18,11 +18,13 @@ from relight.server.problems import Unauthorized
 from relight.server.services.brdfs import BrdfService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.jobs import JobService
+from relight.server.services.meshes import MeshService
 from relight.server.services.plans import PlanService
 from relight.server.services.render import RenderService
 from relight.server.services.scenes import SceneService
 from relight.server.services.shrms import ShrmService
 from relight.server.services.tradeoffs import TradeoffService
+from relight.server.services.visibility import VisibilityService
 from relight.server.state import Services
 
 
@@ -51,6 +53,10 @@ async def get_envmaps(request: Request) -> EnvmapService:
     return _services(request).envmaps
 
 
+async def get_meshes(request: Request) -> MeshService:
+    return _services(request).meshes
+
+
 async def get_brdfs(request: Request) -> BrdfService:
     return _services(request).brdfs
 
@@ -75,11 +81,16 @@ async def get_scenes(request: Request) -> SceneService:
     return _services(request).scenes
 
 
+async def get_visibility(request: Request) -> VisibilityService:
+    return _services(request).visibility
+
+
 async def get_render(request: Request) -> RenderService:
     return _services(request).render
 
 
 EnvmapsDep = Annotated[EnvmapService, Depends(get_envmaps)]
+MeshesDep = Annotated[MeshService, Depends(get_meshes)]
 BrdfsDep = Annotated[BrdfService, Depends(get_brdfs)]
 PlansDep = Annotated[PlanService, Depends(get_plans)]
 JobsDep = Annotated[JobService, Depends(get_jobs)]
@@ -87,6 +98,7 @@ ShrmsDep = Annotated[ShrmService, Depends(get_shrms)]
 TradeoffsDep = Annotated[TradeoffService, Depends(get_tradeoffs)]
 ScenesDep = Annotated[SceneService, Depends(get_scenes)]
 RenderDep = Annotated[RenderService, Depends(get_render)]
+VisibilityDep = Annotated[VisibilityService, Depends(get_visibility)]
 
 
 def presented_key(request: Request) -> str | None:

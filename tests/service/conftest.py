@@ -29,8 +29,8 @@ def sample_exr(data_tmp: Path) -> bytes:
 
 @pytest.fixture(scope="session")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
-    """The shared test server: embedded cluster with two worker processes."""
-    srv = start_server(tmp_path_factory.mktemp("server"))
+    """The shared test server: embedded cluster with two worker processes; the small sample meshes preloaded."""
+    srv = start_server(tmp_path_factory.mktemp("server"), {"RELIGHT_PRELOAD_MESHES": "bunny,teapot"})
     yield srv
     srv.stop()
 

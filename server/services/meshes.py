@@ -1,0 +1,196 @@
+"""Mesh uploads (``POST /meshes``): streamed and size-capped, sniffed, then decoded in a worker process under the
+vertex and face caps; the canonical geometry served back (``GET /meshes/{id}``, ``geometry.bin``).
+
+Order of checks (each rejects before the next costs anything; nothing is stored after a rejection):
+
+1. ``Content-Length`` above ``min(max_upload_bytes, max_mesh_bytes)`` -> 413 before reading the body; bytes are
+   counted while streaming too.
+2. The first bytes (``relight.mesh.sniff``) -> 415 unless GLB, glTF JSON or OBJ text.
+3. Decoding (``relight.worker.meshes.analyze_mesh``) in a Dask worker process, under the worker's memory limit and
+   ``decode_timeout_s``: the declared vertex and face counts against ``max_mesh_vertices`` / ``max_mesh_faces``
+   before any array is built (an OBJ's records counted on the raw bytes, a glTF's accessor counts, a GLB's header
+   length against the file), then parsing, welding, normals -> 422 naming what is wrong (a truncated record, an
+   index out of range, a NaN coordinate, a lying GLB header, 10^8 declared faces ...).
+
+The id is the SHA-256 of the uploaded bytes. The sample meshes (``Settings.preload_meshes``) are ingested the same
+way at start-up from the files ``relight.mesh.sample_file`` gives (the generated bunny-100k as a GLB).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any
+
+from distributed.scheduler import KilledWorker
+from sqlalchemy import select
+
+from relight.contract.models import MeshPublic
+from relight.errors import InputError
+from relight.mesh.load import SNIFF_BYTES, sniff
+from relight.server.cluster import Cluster
+from relight.server.config import Settings
+from relight.server.db import Database, Mesh
+from relight.server.problems import BadRequest, ContentTooLarge, NotFound, Unprocessable, UnsupportedMediaType
+from relight.server.services.base import in_thread, utc
+from relight.server.services.metrics import Metrics
+from relight.worker import meshes as mesh_tasks
+from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore, check_digest
+
+ACCEPTED = "Wavefront OBJ, glTF 2.0 (.gltf with embedded buffers) or GLB"
+
+
+class MeshService:
+    def __init__(self, settings: Settings, db: Database, store: BlobStore, cluster: Cluster,
+                 metrics: Metrics) -> None:
+        self.settings = settings
+        self.db = db
+        self.store = store
+        self.cluster = cluster
+        self.metrics = metrics
+        self._cache: dict[str, MeshPublic] = {}
+
+    @property
+    def max_bytes(self) -> int:
+        return min(self.settings.max_upload_bytes, self.settings.max_mesh_bytes)
+
+    # ------------------------------------------------------------------------------------------------ reading
+    def _public(self, row: Mesh) -> MeshPublic:
+        links = {"self": f"/meshes/{row.id}", "geometry.bin": f"/meshes/{row.id}/geometry.bin"}
+        return MeshPublic(id=row.id, name=row.name, bytes=row.bytes, created_at=utc(row.created_at),
+                          links=links, **{k: v for k, v in row.info.items() if k != "decode_seconds"})
+
+    def _get_row(self, mesh_id: str) -> Mesh | None:
+        with self.db.session() as s:
+            return s.get(Mesh, mesh_id)
+
+    async def get(self, mesh_id: str) -> MeshPublic:
+        cached = self._cache.get(mesh_id)
+        if cached is not None:
+            return cached
+        row = await in_thread(self._get_row, mesh_id)
+        if row is None:
+            raise NotFound(f"no mesh with id {mesh_id!r}")
+        pub = self._public(row)
+        self._cache[mesh_id] = pub
+        return pub
+
+    async def list(self, limit: int) -> list[MeshPublic]:
+        def q() -> list[Mesh]:
+            with self.db.session() as s:
+                return list(s.scalars(select(Mesh).order_by(Mesh.created_at.desc()).limit(limit)))
+
+        return [self._public(r) for r in await in_thread(q)]
+
+    async def geometry(self, mesh_id: str) -> tuple[Path, str]:
+        """The verified ``geometry.bin`` of a mesh (derived data: decoded again if it is gone or corrupt)."""
+        pub = await self.get(mesh_id)
+        digest = str(pub.geometry["sha256"])
+        try:
+            return await in_thread(self.store.verified_path, digest), digest
+        except (BlobMissing, BlobCorrupt):
+            await self._analyze(pub.id, pub.name or "mesh")
+            return await in_thread(self.store.verified_path, digest), digest
+
+    # ------------------------------------------------------------------------------------------------ upload
+    async def ingest_stream(self, chunks: AsyncIterator[bytes], content_length: str | None,
+                            name: str | None) -> tuple[MeshPublic, bool]:
+        """Store and decode an upload; the mesh and whether it is new (201) or known (200)."""
+        cap = self.max_bytes
+        if content_length is not None:
+            try:
+                declared = int(content_length)
+            except ValueError:
+                raise BadRequest(f"Content-Length must be an integer, got {content_length!r}") from None
+            if declared > cap:
+                self.metrics.inc("uploads_rejected_total")
+                raise ContentTooLarge(f"the body is {declared} bytes; the mesh size limit is {cap} bytes")
+        writer = self.store.writer()
+        try:
+            head = b""
+            async for chunk in chunks:
+                if not chunk:
+                    continue
+                if writer.size + len(chunk) > cap:
+                    raise ContentTooLarge(f"the body exceeds the mesh size limit of {cap} bytes")
+                if len(head) < SNIFF_BYTES:
+                    head += chunk[: SNIFF_BYTES - len(head)]
+                writer.write(chunk)
+            if writer.size == 0:
+                raise Unprocessable("the request body is empty: send the mesh file as the body")
+            if sniff(head) is None:
+                raise UnsupportedMediaType(f"unrecognised mesh file (the body starts with {head[:8].hex(' ')}); "
+                                           f"accepted formats are {ACCEPTED}")
+            digest = await in_thread(writer.finish)
+            existing = await in_thread(self._get_row, digest)
+            if existing is not None and self.store.has(digest):
+                writer.abort()
+                return self._public(existing), False
+            await in_thread(self.store._install, writer.tmp_path, digest)
+        except BaseException as exc:
+            if isinstance(exc, ContentTooLarge | UnsupportedMediaType | Unprocessable):
+                self.metrics.inc("uploads_rejected_total")
+            writer.abort()
+            raise
+        return await self._ingest_blob(digest, writer.size, name, known=existing is not None)
+
+    async def _ingest_blob(self, digest: str, size: int, name: str | None, *, known: bool) -> tuple[MeshPublic, bool]:
+        """Decode the stored upload ``digest`` and record it; an upload that fails to decode is deleted."""
+        try:
+            info = await self._analyze(digest, name or "mesh")
+        except BaseException:
+            if not known:
+                await in_thread(self.store.delete, digest)
+                self.metrics.inc("uploads_rejected_total")
+            raise
+        row = Mesh(id=digest, name=(name or None) and name[:255], bytes=size, info=info)
+
+        def insert() -> Mesh:
+            with self.db.session() as s:
+                found = s.get(Mesh, digest)
+                if found is not None:
+                    return found
+                s.add(row)
+            return row
+
+        stored = await in_thread(insert)
+        self.metrics.inc("uploads_total")
+        return self._public(stored), stored is row
+
+    async def ingest_sample(self, sample: str) -> tuple[MeshPublic, bool]:
+        """Ingest a sample mesh (``relight.mesh.SAMPLES``) as an upload of its file."""
+        fut = self.cluster.submit(mesh_tasks.sample_upload, str(self.store.root), sample,
+                                  key=f"relight-mesh-sample-{sample}")
+        try:
+            filename, digest, size = await fut
+        except InputError as exc:
+            raise Unprocessable(str(exc)) from None
+        existing = await in_thread(self._get_row, digest)
+        if existing is not None:
+            return self._public(existing), False
+        return await self._ingest_blob(digest, size, sample, known=False)
+
+    async def _analyze(self, digest: str, name: str) -> dict[str, Any]:
+        s = self.settings
+        fut = self.cluster.submit(mesh_tasks.analyze_mesh, str(self.store.root), digest, name=name,
+                                  max_bytes=self.max_bytes, max_vertices=s.max_mesh_vertices,
+                                  max_faces=s.max_mesh_faces, key=f"relight-mesh-{digest}")
+        try:
+            info: dict[str, Any] = await asyncio.wait_for(fut, s.decode_timeout_s)
+        except TimeoutError:
+            await self.cluster.cancel(fut)
+            raise Unprocessable(f"decoding the mesh took longer than {s.decode_timeout_s:g} s; it was stopped") \
+                from None
+        except InputError as exc:
+            raise Unprocessable(str(exc)) from None
+        except KilledWorker:
+            raise Unprocessable("decoding the mesh crashed the worker process (corrupt data or over the memory "
+                                "limit)") from None
+        return info
+
+    def known_digest(self, mesh_id: str) -> str:
+        try:
+            return check_digest(mesh_id)
+        except ValueError:
+            raise NotFound(f"no mesh with id {mesh_id!r}") from None
