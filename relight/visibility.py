@@ -53,6 +53,9 @@ GOLDEN_ANGLE: Final = np.pi * (3.0 - np.sqrt(5.0))
 #: Largest order accepted (a (F+1)^2 x (F+1)^2 matrix per vertex at F = 8 is 6561 floats).
 MAX_ORDER: Final = 8
 MAX_RAYS: Final = 1 << 16
+#: Occlusion rays per second assumed by :func:`predict` (Embree on this 2-core machine: 2.4-3.3 Mrays/s,
+#: ``shared/wave2-design-notes.md`` §2.5; the lower end, since SH accumulation adds to the ray cost).
+PREDICTED_RAYS_PER_SECOND: Final = 2.0e6
 
 
 @dataclass(frozen=True)
@@ -261,6 +264,26 @@ def run_manifest(mesh: TriangleMesh, settings: TransferSettings, arrays: dict[st
         "ray_offset": ray_offset(mesh.positions), "basis": "relight real SH, world frame, index l^2 + l + m",
         "monte_carlo_error_rms": {key: rms(key) for key in sorted(arrays) if key.endswith("_error")},
     }
+
+
+def predict(settings: TransferSettings, vertices: int) -> dict[str, Any]:
+    """Before computing: the rays cast, the seconds (at :data:`PREDICTED_RAYS_PER_SECOND`) and an upper bound on
+    the per-vertex RMS Monte Carlo error of each output under i.i.d. sampling (the stratified Fibonacci set does
+    better). With the addition theorem ``sum_k Yr_k^2 = (F+1)^2 / (4 pi)`` the summed variances of
+    ``f_k = 4 pi g Yr_k`` are at most ``(F+1)^2 int g^2``: for visibility (``g = V <= 1``) ``(F+1) sqrt(4 pi / R)``,
+    for the transfer (``g = V max(0, n.w) / pi``, ``int g^2 <= 2 / (3 pi)``) ``(F+1) sqrt(2 / (3 pi R))``, for AO
+    (``var = 4 pi int g^2 - ao^2 <= 8/3``) ``sqrt(8 / (3 R))``, for the shadow matrix ``(F+1)^2 / sqrt(R)``."""
+    s = settings
+    r, n = s.rays, s.order + 1
+    passes = 1 + s.bounces
+    errors = {"visibility_error": n * np.sqrt(4.0 * np.pi / r), "ao_error": np.sqrt(8.0 / (3.0 * r))}
+    if s.kind == "diffuse_transfer":
+        errors["transfer_error"] = n * np.sqrt(2.0 / (3.0 * np.pi * r))
+    elif s.kind == "shadow_matrix":  # 4 pi int V (sum_i Yr_i^2)^2 <= 4 pi 4 pi ((F+1)^2 / (4 pi))^2 = (F+1)^4
+        errors["shadow_matrix_error"] = n * n * np.sqrt(1.0 / r)
+    rays = vertices * r * passes
+    return {"rays_cast": rays, "seconds": rays / PREDICTED_RAYS_PER_SECOND,
+            "monte_carlo_error_bound": {k: float(v) for k, v in errors.items()}}
 
 
 def compute_transfer(mesh: TriangleMesh, settings: TransferSettings | None = None) -> TransferResult:

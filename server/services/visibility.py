@@ -11,18 +11,21 @@ the blob store (``relight.worker.visibility_results``), served verified, and rec
 from __future__ import annotations
 
 import logging
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from relight.contract.models import JobPublic, JobState, Measurement, VisibilityCreate
+from relight.contract.models import JobPublic, JobState, Measurement, Prediction, VisibilityCreate
 from relight.server.db import Job, utcnow
 from relight.server.problems import Conflict, NotFound, Unavailable
 from relight.server.services.base import aware, in_thread
 from relight.server.services.jobs import JobService
-from relight.server.services.kinds import JobKind, register
+from relight.server.services.kinds import JobKind, Submission, register
 from relight.server.services.meshes import MeshService
 from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
 from relight.worker.results import job_ref, load_manifest
-from relight.worker.visibility import compute_visibility
+from relight.worker.visibility import compute_visibility, settings_of
+
+if TYPE_CHECKING:
+    from relight.server.state import Services
 
 log = logging.getLogger("relight.server")
 
@@ -48,7 +51,12 @@ def _store_result(row: Job, result: dict[str, Any]) -> None:
                                          "rays_cast", "mrays_per_second", "block_processes") if k in result}
 
 
-VISIBILITY = register(JobKind("visibility", compute_visibility, links=_links, store_result=_store_result))
+async def _prepare(create: VisibilityCreate, services: Services) -> Submission:
+    return await services.visibility.prepare(create)
+
+
+VISIBILITY = register(JobKind("visibility", compute_visibility, request=VisibilityCreate, prepare=_prepare,
+                              links=_links, store_result=_store_result))
 
 
 class VisibilityService:
@@ -67,10 +75,24 @@ class VisibilityService:
         geometry = {"sha256": mesh.geometry["sha256"], "vertices": mesh.vertices, "faces": mesh.faces}
         return {"mesh": mesh.id, "geometry": geometry, **create.model_dump(mode="json", exclude={"mesh"})}
 
-    async def submit(self, create: VisibilityCreate) -> tuple[JobPublic, int]:
+    async def prepare(self, create: VisibilityCreate) -> Submission:
+        """The canonical request, the prediction (``relight.visibility.predict``: rays, seconds, Monte Carlo error
+        bound) and the integrity check of a stored result; 404 for an unknown mesh."""
+        from relight.visibility import predict
+
         request = await self.request(create)
         await self.meshes.geometry(create.mesh)  # decoded again first if the stored geometry is gone
-        row, status = await self.jobs.submit(VISIBILITY, request, intact=self._intact)
+        pred = predict(settings_of(request), int(request["geometry"]["vertices"]))
+        errors = pred["monte_carlo_error_bound"]
+        predicted = Prediction(seconds=pred["seconds"],
+                               rms_error=errors.get("transfer_error", errors["visibility_error"]),
+                               representation=f"per-vertex {create.kind}, order {create.order}, {create.rays} rays"
+                               ).model_dump(mode="json")
+        return Submission(request, predicted=predicted, intact=self._intact)
+
+    async def submit(self, create: VisibilityCreate) -> tuple[JobPublic, int]:
+        sub = await self.prepare(create)
+        row, status = await self.jobs.submit(VISIBILITY, sub.request, predicted=sub.predicted, intact=sub.intact)
         return self.jobs.public(row, cached=status == 200 and row.state == JobState.succeeded), status
 
     async def _intact(self, row: Job) -> bool:

@@ -70,6 +70,13 @@ def test_diffuse_transfer_job_fans_out_and_equals_the_core(http: httpx.Client) -
     again = http.post("/visibility", json=body)
     assert again.status_code == 200 and again.json()["id"] == job["id"] and again.json()["cached"] is True
     assert done["links"]["transfer.bin"] == f"/visibility/{job['id']}/files/transfer.bin"
+    # the predicted Monte Carlo error is the i.i.d. bound (relight.visibility.predict): the stratified set stays below
+    assert done["measured"]["rms_error"] <= done["predicted"]["rms_error"], (done["measured"], done["predicted"])
+    # the generic route takes the same request: the same job, its files through /jobs/{id}/files
+    generic = http.post("/jobs", json={"kind": "visibility", "request": body})
+    assert generic.status_code == 200 and generic.json()["id"] == job["id"], generic.text
+    raw = http.get(f"/jobs/{job['id']}/files/ao.bin")
+    assert raw.status_code == 200 and raw.headers["etag"] == f'"{manifest["files"]["ao.bin"]["sha256"]}"'
 
 
 def test_shadow_matrix_job_is_symmetric_and_contracts_visibility(http: httpx.Client) -> None:
