@@ -1,6 +1,6 @@
 """Engine export commands of the ``relight`` CLI (engine-ready outputs issue, item 1).
 
-    relight export ENVMAP --target three|filament|gltf --format ktx2 [--size 256] [--levels L]
+    relight export ENVMAP --target three|filament|gltf|babylon --format ktx2 [--size 256] [--levels L]
                    [--epsilon E] --out FILE.ktx2 [--json]
         the target engine's prefiltered GGX cube chain (``relight.cube_chain``): one mip per roughness in the
         engine's own lod mapping, RGBA16F, OpenGL face order; FILE.ktx2 carries the per-level table under the
@@ -77,7 +77,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 def register(sub: Any) -> None:
     ex = sub.add_parser("export", help="engine-ready prefiltered cube chain (KTX2) of an environment map")
     ex.add_argument("envmap")
-    ex.add_argument("--target", required=True, choices=["three", "filament", "gltf"],
+    ex.add_argument("--target", required=True, choices=["three", "filament", "gltf", "babylon"],
                     help="engine whose roughness-to-mip mapping and split-sum lobe the chain follows")
     ex.add_argument("--format", default="ktx2", choices=["ktx2"])
     ex.add_argument("--size", type=int, default=256, help="face size of level 0 (a power of two)")

@@ -60,17 +60,19 @@ class GGXSplitSum(RadialLobe):
 
     ``roughness`` is the perceptual roughness r in [1e-3, 1] (alpha = r^2, the glTF / Filament / three.js
     convention). The lobe integrates to 1 over the sphere, so a uniform environment is reproduced exactly.
+    ``max_roughness`` admits r > 1 (alpha > 1, a GGX wider than the clamped cosine, still normalised): Babylon's
+    prefilter writes such levels at the end of its chains (``relight.cube_chain``); the ``ggx-ld`` spec keeps 1.
     """
 
     kind: ClassVar[str] = "ggx-ld"
 
-    def __init__(self, roughness: float) -> None:
+    def __init__(self, roughness: float, *, max_roughness: float = 1.0) -> None:
         try:
             r = float(roughness)
         except (TypeError, ValueError):
             raise InputError(f"roughness must be a number, got {roughness!r}") from None
-        if not math.isfinite(r) or not MIN_ROUGHNESS <= r <= 1.0:
-            raise InputError(f"roughness must lie in [{MIN_ROUGHNESS:g}, 1], got {roughness!r}")
+        if not math.isfinite(r) or not MIN_ROUGHNESS <= r <= max_roughness:
+            raise InputError(f"roughness must lie in [{MIN_ROUGHNESS:g}, {max_roughness:g}], got {roughness!r}")
         self.roughness = r
         self.alpha = r * r
         self.center = "N"
