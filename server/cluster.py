@@ -4,6 +4,9 @@ Embedded (no ``RELIGHT_SCHEDULER``): worker *processes* bound to 127.0.0.1, no d
 limit; the scheduler lives in the server process. Scale-out: ``RELIGHT_SCHEDULER=tcp://host:8786`` connects to
 a running scheduler whose workers were started with ``relight worker --scheduler ...``.
 
+Every function submitted is a task function of ``relight.worker`` (:meth:`Cluster.submit` refuses anything else):
+the workers' entry points live in ``worker/``, thin wrappers over the core where needed.
+
 The client is asynchronous and shares the server's event loop. Dask's classes are untyped; they are held as
 ``Any`` here, the one module that talks to Dask directly.
 """
@@ -26,6 +29,8 @@ log = logging.getLogger("relight.server")
 #: worker must not fail a job); a second points at the task itself (e.g. an input that crashes the decoder).
 ALLOWED_FAILURES = 1
 START_TIMEOUT_S = 60.0
+#: The package whose functions the server may submit (the worker's entry points).
+WORKER_PACKAGE = "relight.worker"
 
 
 class Cluster:
@@ -73,7 +78,12 @@ class Cluster:
         self.client.subscribe_topic(topic, handler)
 
     def submit(self, fn: Callable[..., Any], *args: Any, key: str, **kwargs: Any) -> Any:
-        """A ``distributed.Future`` (awaitable) for ``fn(*args, **kwargs)`` under ``key``."""
+        """A ``distributed.Future`` (awaitable) for ``fn(*args, **kwargs)`` under ``key``; ``fn`` must be defined in
+        ``relight.worker`` (TypeError otherwise)."""
+        module = getattr(fn, "__module__", None) or ""
+        if module != WORKER_PACKAGE and not module.startswith(WORKER_PACKAGE + "."):
+            raise TypeError(f"{getattr(fn, '__qualname__', fn)!r} of {module or 'no module'!r} is not a task of "
+                            f"{WORKER_PACKAGE}: Dask callables live in worker/ (wrap the core function there)")
         return self.client.submit(fn, *args, key=key, pure=False, retries=0, **kwargs)
 
     async def cancel(self, future: Any) -> None:

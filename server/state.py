@@ -14,6 +14,7 @@ from relight.server.config import Settings
 from relight.server.db import Database
 from relight.server.services.base import in_thread
 from relight.server.services.brdfs import BrdfService
+from relight.server.services.calibration import CalibrationService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.events import EventHub
 from relight.server.services.jobs import JobService
@@ -54,6 +55,7 @@ class Services:
     render: RenderService
     meshes: MeshService
     visibility: VisibilityService
+    calibration: CalibrationService
     background: list[asyncio.Task[None]] = field(default_factory=list)
 
     @classmethod
@@ -71,13 +73,15 @@ class Services:
         hub, metrics = EventHub(), Metrics()
         envmaps = EnvmapService(settings, db, store, cluster, metrics)
         brdfs = BrdfService(settings, db, store)
-        plans = PlanService(settings, db, store, envmaps, brdfs)
+        calibration = CalibrationService(cluster)
+        plans = PlanService(settings, db, store, envmaps, brdfs, calibration)
         jobs = JobService(settings, db, store, cluster, hub, metrics, envmaps)
         meshes = MeshService(settings, db, store, cluster, metrics)
-        self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs,
-                   shrms=ShrmService(jobs, plans, envmaps, store, cluster),
+        shrms = ShrmService(jobs, plans, envmaps, store, cluster)
+        self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs, shrms=shrms,
                    tradeoffs=TradeoffService(jobs, envmaps, brdfs), scenes=SceneService(jobs, envmaps, brdfs),
-                   render=RenderService(), meshes=meshes, visibility=VisibilityService(jobs, meshes, store))
+                   render=RenderService(settings, store, cluster, envmaps, shrms), meshes=meshes,
+                   visibility=VisibilityService(jobs, meshes, store), calibration=calibration)
         jobs.start()
         cluster.subscribe(TOPIC, jobs.on_event)
         await jobs.resume()  # every kind: the kinds registered themselves when their services were imported
@@ -116,5 +120,6 @@ class Services:
         await asyncio.gather(*self.background, return_exceptions=True)
         await self.jobs.close()
         await self.render.close()
+        await self.calibration.close()
         await self.cluster.close()
         self.db.dispose()

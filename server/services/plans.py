@@ -1,4 +1,5 @@
-"""Resolving a job request (map, BRDF, canonical parameters, job id) and planning it without computing."""
+"""Resolving a job request (map, BRDF, canonical parameters, job id) and planning it without computing (with the
+machine's cost-model calibration, :mod:`relight.server.services.calibration`)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from relight.server.db import Database, Job
 from relight.server.problems import Unavailable, Unprocessable
 from relight.server.services.base import content_id, in_thread
 from relight.server.services.brdfs import BrdfService
+from relight.server.services.calibration import CalibrationService
 from relight.server.services.envmaps import EnvmapService
 from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
 from relight.worker.specs import to_core
@@ -38,8 +40,9 @@ def job_id_for(envmap_id: str, brdf_id: str, params: dict[str, Any]) -> str:
 
 class PlanService:
     def __init__(self, settings: Settings, db: Database, store: BlobStore, envmaps: EnvmapService,
-                 brdfs: BrdfService) -> None:
+                 brdfs: BrdfService, calibration: CalibrationService) -> None:
         self.settings = settings
+        self.calibration = calibration
         self.store = store
         self.db = db
         self.envmaps = envmaps
@@ -84,9 +87,7 @@ class PlanService:
             raise Unavailable(f"the measured BRDF file of {prep.brdf.id} is unusable ({exc}); upload it again") \
                 from None
         if not raw.cost_model.calibrated:
-            from relight.server.services.tradeoffs import start_calibration
-
-            start_calibration(self.envmaps.cluster)
+            self.calibration.ensure()
         s = self.settings
         f_b, p_b = raw.orders.F_B, raw.orders.P_B
         if f_b > s.max_order:

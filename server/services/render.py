@@ -1,10 +1,15 @@
-"""The render service: one OpenGL context on one dedicated thread and the caches of what it and the workers drew.
+"""The render service: one OpenGL context on one dedicated thread, the images the workers draw, and the caches of
+both (the logic behind ``server/api/routes/render.py``).
 
-A GL context is bound to the thread that made it, so every GL call of the server runs on the service's single
-thread; the renderers of the most recent results are kept (their textures are uploaded once). Images, references
-and environment textures are kept in a bounded LRU (``cachetools``) keyed by content: result digest, canonical view,
-parameters. Created at start-up and closed at shutdown (:class:`relight.server.state.Services`): closing releases the
-renderers and the context on their own thread, then stops it.
+* :meth:`RenderService.view` — a result drawn by ``relight.gl.render.Renderer`` on the GL thread. A GL context is
+  bound to the thread that made it, so every GL call of the server runs on the service's single thread; the
+  renderers of the most recent results are kept (their textures are uploaded once).
+* :meth:`RenderService.reference` / :meth:`RenderService.texture` — the brute-force reference and the background
+  texture, computed in a worker (:mod:`relight.worker.render`: they decode the uploaded map).
+
+Images, references and environment textures are kept in a bounded LRU (``cachetools``) keyed by content: result
+digest, canonical view, parameters. Created at start-up and closed at shutdown (:class:`relight.server.state
+.Services`): closing releases the renderers and the context on their own thread, then stops it.
 """
 
 from __future__ import annotations
@@ -19,11 +24,24 @@ import numpy as np
 from cachetools import LRUCache
 
 from relight.errors import InputError
+from relight.server.cluster import Cluster
+from relight.server.config import Settings
+from relight.server.problems import Unavailable, Unprocessable
+from relight.server.services.base import content_id, in_thread
+from relight.server.services.envmaps import EnvmapService
+from relight.server.services.shrms import ShrmService
+from relight.worker import render as tasks
+from relight.worker.blobs import BlobStore
 
 #: Images, references and textures kept in memory (a 1024^2 float32 RGB image is 12 MiB; most are 256^2).
 IMAGE_CACHE_ITEMS: Final = 64
 #: Renderers (GL textures of one result each) kept on the GL thread.
 RENDERER_ITEMS: Final = 4
+REFERENCE_TIMEOUT_S: Final = 300.0
+TEXTURE_TIMEOUT_S: Final = 120.0
+#: Default resampling of the map for the reference: 4 (F_B + 1) rows keeps every band the result holds (a box
+#: filter of that pixel size attenuates band F_B by under 3 %), at least 64, never above the map's own rows.
+REFERENCE_ROWS_PER_BAND, REFERENCE_MIN_ROWS = 4, 64
 
 
 class _Renderers(LRUCache[str, Any]):
@@ -36,7 +54,13 @@ class _Renderers(LRUCache[str, Any]):
 
 
 class RenderService:
-    def __init__(self) -> None:
+    def __init__(self, settings: Settings, store: BlobStore, cluster: Cluster, envmaps: EnvmapService,
+                 shrms: ShrmService) -> None:
+        self.settings = settings
+        self.store = store
+        self.cluster = cluster
+        self.envmaps = envmaps
+        self.shrms = shrms
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="relight-gl")
         self._ctx: Any = None
         self._renderers = _Renderers(RENDERER_ITEMS)  # touched on the GL thread only
@@ -73,6 +97,74 @@ class RenderService:
         """The result ``digest`` drawn by ``relight.gl.render.Renderer.render(**kw)`` on the GL thread."""
         loop = asyncio.get_running_loop()
         return await loop.run_in_executor(self._pool, lambda: self._render(digest, manifest, data, **kw))
+
+    # ------------------------------------------------------------------------------------------------ endpoints
+    async def view(self, shrm_id: str, view: list[float], **kw: Any) -> np.ndarray:
+        """The result ``shrm_id`` drawn for the canonical ``view`` (``size``, ``obj``, ``mode``, ``env_rotation``:
+        ``relight.gl.render.Renderer.render``); 503 without an OpenGL context."""
+        digest, manifest = await self.shrms.manifest(shrm_id)
+        key = ("render", digest, tuple(view), *sorted(kw.items()))
+        image: np.ndarray | None = self.cached(key)
+        if image is None:
+            f = await self.shrms.result_file(shrm_id, "coefficients.bin")
+            data = await in_thread(f.path.read_bytes)
+            try:
+                image = await self.render(digest, manifest, data, view=view, **kw)
+            except RuntimeError as exc:
+                raise Unavailable(f"no OpenGL context on this server: {exc}") from None
+            except InputError as exc:
+                raise Unprocessable(str(exc)) from None
+            self.keep(key, image)
+        return image
+
+    async def reference(self, shrm_id: str, view: list[float], size: int,
+                        env_rows: int | None) -> tuple[np.ndarray, int]:
+        """The brute-force image of the sphere for the result's map and BRDF, and the map rows it was computed at
+        (default: :data:`REFERENCE_ROWS_PER_BAND` (F_B + 1), at least :data:`REFERENCE_MIN_ROWS`)."""
+        digest, manifest = await self.shrms.manifest(shrm_id)
+        envmap_id = self.envmaps.known_digest(str(manifest.get("envmap", "")))
+        if env_rows is None:
+            f_b = int((manifest.get("orders") or {}).get("F_B") or 32)
+            env_rows = max(REFERENCE_MIN_ROWS, REFERENCE_ROWS_PER_BAND * (f_b + 1))
+        env_rows = min(env_rows, int((manifest.get("input") or {}).get("height") or env_rows))
+        key = ("reference", digest, tuple(view), size, env_rows)
+        image = self.cached(key)
+        if image is None:
+            await self.envmaps.input_ok(envmap_id)
+            fut = self.cluster.submit(tasks.reference_image, str(self.store.root), envmap_id, manifest.get("brdf"),
+                                      view, size, key=f"relight-reference-{content_id(list(key))}",
+                                      env_rows=env_rows, max_pixels=self.settings.max_pixels)
+            try:
+                image = np.asarray(await asyncio.wait_for(fut, REFERENCE_TIMEOUT_S))
+            except (InputError, ValueError, KeyError, TypeError) as exc:
+                raise Unprocessable(f"no brute-force reference for this result: {exc}") from None
+            except TimeoutError:
+                await self.cluster.cancel(fut)
+                raise Unavailable(f"the reference took longer than {REFERENCE_TIMEOUT_S:.0f} s; ask for a smaller "
+                                  "size or env_rows", headers={"Retry-After": "10"}) from None
+            except asyncio.CancelledError:
+                await self.cluster.cancel(fut)  # the client went away: free the worker
+                raise
+            self.keep(key, image)
+        return image, env_rows
+
+    async def texture(self, envmap_id: str, rows: int) -> tuple[bytes, int, int]:
+        """The map as little-endian float16 RGB texels: (bytes, height, width)."""
+        await self.envmaps.get(envmap_id)  # 404 for an unknown map
+        key = ("texture", envmap_id, rows)
+        cached = self.cached(key)
+        if cached is None:
+            await self.envmaps.input_ok(envmap_id)
+            fut = self.cluster.submit(tasks.envmap_texture, str(self.store.root), envmap_id, rows,
+                                      key=f"relight-texture-{envmap_id[:16]}-{rows}",
+                                      max_pixels=self.settings.max_pixels)
+            try:
+                cached = await asyncio.wait_for(fut, TEXTURE_TIMEOUT_S)
+            except InputError as exc:
+                raise Unprocessable(str(exc)) from None
+            self.keep(key, cached)
+        data, h, w = cached
+        return data, int(h), int(w)
 
     def _release(self) -> None:
         while self._renderers:

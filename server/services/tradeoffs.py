@@ -1,23 +1,17 @@
-"""Accuracy–time sweeps as jobs (``POST /tradeoffs``, the ``tradeoff`` job kind), and the calibrated cost model
-behind ``/plan``.
+"""Accuracy–time sweeps as jobs (``POST /tradeoffs``, the ``tradeoff`` job kind).
 
 * **Sweeps.** A tradeoff is identified by the SHA-256 of its canonical request (with ``relight.ALGORITHM_VERSION``
   and the kind's result version, :meth:`relight.server.services.kinds.JobKind.job_id`); it runs as a job of the one
   job system (:class:`relight.server.services.jobs.JobService`: progress, SSE, cancel, the cap, recovery) with the
   task :func:`relight.worker.analysis.compute_tradeoff`, whose small JSON result is stored on the job's row.
   Identical requests share the job (200 with the result once it exists).
-* **Cost model.** ``/plan`` predicts seconds with ``relight.planning.plan_job``: the calibration cached for this
-  machine if one exists, else the built-in constants while a calibration runs once in a worker
-  (:func:`start_calibration`).
 """
 
 from __future__ import annotations
 
-import logging
 from typing import TYPE_CHECKING, Any, Final
 
 from relight.contract.models import TradeoffCreate, TradeoffPublic
-from relight.server.cluster import Cluster
 from relight.server.db import Job
 from relight.server.problems import Unprocessable
 from relight.server.services.base import aware, utc
@@ -30,10 +24,9 @@ from relight.worker.analysis import compute_tradeoff
 if TYPE_CHECKING:
     from relight.server.state import Services
 
-log = logging.getLogger("relight.server")
-
 #: Server-side caps of a sweep (each point runs both an SHRM and an angular reference).
 MAX_TRADEOFF_ROWS: Final = 256
+
 
 async def _prepare(create: TradeoffCreate, services: Services) -> dict[str, Any]:
     return await services.tradeoffs.canonical(create)
@@ -91,23 +84,3 @@ class TradeoffService:
 
     async def get(self, job_id: str) -> TradeoffPublic:
         return self.public(await self.jobs.row(job_id, TRADEOFF.name))
-
-
-# --------------------------------------------------------------------------------------------- cost model for /plan
-_calibrating: dict[str, Any] = {}
-
-
-def start_calibration(cluster: Cluster) -> None:
-    """Calibrate the cost model once in a worker (``relight.worker.analysis.calibrate_costmodel``); call on the event
-    loop.
-
-    The worker writes the calibration file that ``relight.planning.plan_job`` reads on later calls.
-    """
-    if "future" in _calibrating:
-        return
-    from relight.worker.analysis import calibrate_costmodel
-
-    try:
-        _calibrating["future"] = cluster.submit(calibrate_costmodel, key="relight-costmodel-calibration")
-    except RuntimeError as exc:  # the cluster is not started
-        log.warning("could not start the cost-model calibration: %s", exc)

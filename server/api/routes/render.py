@@ -11,25 +11,24 @@ environment map as a float16 texture for the viewer's background.
 
 PNGs go through the project's display transform (``exposure`` stops, ``tonemap`` aces|reinhard|none); EXRs are
 float32 linear radiance. Everything is cached in memory (bounded) by content: result digest, canonical view,
-parameters (:class:`relight.server.services.render.RenderService`, which also owns the GL thread).
+parameters (:class:`relight.server.services.render.RenderService`, which also owns the GL thread and submits the
+worker tasks of :mod:`relight.worker.render`).
 """
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from fastapi import APIRouter, Query, Request
 from starlette.responses import Response
 
 from relight.contract.models import parse_view
-from relight.errors import InputError
-from relight.server.api.deps import EnvmapsDep, RenderDep, ServicesDep, ShrmsDep
-from relight.server.problems import Unavailable, Unprocessable, problem_responses
-from relight.server.services.base import content_id
+from relight.server.api.deps import RenderDep
+from relight.server.problems import Unprocessable, problem_responses
+from relight.server.services.base import in_thread
 
 log = logging.getLogger("relight.server")
 
@@ -38,11 +37,6 @@ router = APIRouter(tags=["render"])
 Format = Literal["png", "exr"]
 MEDIA = {"png": "image/png", "exr": "image/x-exr"}
 ERRORS = problem_responses(401, 404, 409, 422, 503)
-REFERENCE_TIMEOUT_S = 300.0
-#: Default resampling of the map for the reference: 4 (F_B + 1) rows keeps every band the result holds (a box
-#: filter of that pixel size attenuates band F_B by under 3 %), at least 64, never above the map's own rows.
-REFERENCE_ROWS_PER_BAND, REFERENCE_MIN_ROWS = 4, 64
-TEXTURE_TIMEOUT_S = 120.0
 MAX_RENDER_SIZE = 1024
 
 ViewQuery = Annotated[str, Query(description="view direction x,y,z toward the viewer (normalised here)",
@@ -66,16 +60,11 @@ def _encode(image: np.ndarray, fmt: Format, exposure: float, tonemap: str, attri
     return encode_png(image, exposure=exposure, operator=tonemap) if fmt == "png" else encode_exr(image, attributes)
 
 
-async def _in_thread(fn: Any, *args: Any) -> Any:
-    return await asyncio.get_running_loop().run_in_executor(None, fn, *args)
-
-
 @router.get("/shrms/{shrm_id}/render.{fmt}", response_class=Response,
             responses={200: {"content": {"image/png": {}, "image/x-exr": {}}}, **ERRORS})
 async def render_view(
     shrm_id: str,
     fmt: Format,
-    shrms: ShrmsDep,
     renders: RenderDep,
     view: ViewQuery = "0,0,1",
     size: Annotated[int, Query(ge=8, le=MAX_RENDER_SIZE)] = 256,
@@ -89,22 +78,9 @@ async def render_view(
 ) -> Response:
     """The result on a sphere, bunny or teapot seen from the distant direction V (orthographic, +Y up)."""
     v = _view(view)
-    digest, manifest = await shrms.manifest(shrm_id)
-    key = ("render", digest, tuple(v), size, object, mode, rotation)
-    image = renders.cached(key)
-    if image is None:
-        f = await shrms.result_file(shrm_id, "coefficients.bin")
-        data = await _in_thread(f.path.read_bytes)
-        try:
-            image = await renders.render(digest, manifest, data, view=v, size=size, obj=object, mode=mode,
-                                     env_rotation=math.radians(rotation))
-        except RuntimeError as exc:
-            raise Unavailable(f"no OpenGL context on this server: {exc}") from None
-        except InputError as exc:
-            raise Unprocessable(str(exc)) from None
-        renders.keep(key, image)
-    body = await _in_thread(_encode, image, fmt, exposure, tonemap,
-                            {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.object": object})
+    image = await renders.view(shrm_id, v, size=size, obj=object, mode=mode, env_rotation=math.radians(rotation))
+    body = await in_thread(_encode, image, fmt, exposure, tonemap,
+                           {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.object": object})
     return Response(body, media_type=MEDIA[fmt], headers={"Cache-Control": "public, max-age=3600"})
 
 
@@ -113,10 +89,7 @@ async def render_view(
 async def reference_view(
     shrm_id: str,
     fmt: Format,
-    shrms: ShrmsDep,
     renders: RenderDep,
-    envmaps: EnvmapsDep,
-    services: ServicesDep,
     view: ViewQuery = "0,0,1",
     size: Annotated[int, Query(ge=8, le=256, description="image edge in pixels")] = 128,
     env_rows: Annotated[int | None, Query(ge=8, le=4096, description="resample the map to this many rows first "
@@ -126,40 +99,13 @@ async def reference_view(
     tonemap: TonemapQuery = "aces",
 ) -> Response:
     """Angular-domain brute force of the unit sphere for the same view and camera as ``render`` (slow)."""
-    from relight.gl.views import reference_sphere_image
-
     v = _view(view)
-    digest, manifest = await shrms.manifest(shrm_id)
-    envmap_id = envmaps.known_digest(str(manifest.get("envmap", "")))
-    if env_rows is None:
-        f_b = int((manifest.get("orders") or {}).get("F_B") or 32)
-        env_rows = max(REFERENCE_MIN_ROWS, REFERENCE_ROWS_PER_BAND * (f_b + 1))
-    env_rows = min(env_rows, int((manifest.get("input") or {}).get("height") or env_rows))
-    key = ("reference", digest, tuple(v), size, env_rows)
-    image = renders.cached(key)
-    if image is None:
-        await envmaps.input_ok(envmap_id)
-        path = str(services.store.path(envmap_id))
-        fut = services.cluster.submit(reference_sphere_image, path, manifest.get("brdf"), v, size,
-                                      key=f"relight-reference-{content_id(list(key))}", env_rows=env_rows,
-                                      max_pixels=services.settings.max_pixels)
-        try:
-            image = np.asarray(await asyncio.wait_for(fut, REFERENCE_TIMEOUT_S))
-        except (InputError, ValueError, KeyError, TypeError) as exc:
-            raise Unprocessable(f"no brute-force reference for this result: {exc}") from None
-        except TimeoutError:
-            await services.cluster.cancel(fut)
-            raise Unavailable(f"the reference took longer than {REFERENCE_TIMEOUT_S:.0f} s; ask for a smaller size "
-                              "or env_rows", headers={"Retry-After": "10"}) from None
-        except asyncio.CancelledError:
-            await services.cluster.cancel(fut)  # the client went away: free the worker
-            raise
-        renders.keep(key, image)
-    body = await _in_thread(_encode, image, fmt, exposure, tonemap,
-                            {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.reference": "angular",
-                             "relight.env_rows": str(env_rows)})
+    image, rows = await renders.reference(shrm_id, v, size, env_rows)
+    body = await in_thread(_encode, image, fmt, exposure, tonemap,
+                           {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.reference": "angular",
+                            "relight.env_rows": str(rows)})
     return Response(body, media_type=MEDIA[fmt], headers={"Cache-Control": "public, max-age=3600",
-                                                          "X-Reference-Env-Rows": str(env_rows),
+                                                          "X-Reference-Env-Rows": str(rows),
                                                           "Access-Control-Expose-Headers": "X-Reference-Env-Rows"})
 
 
@@ -170,28 +116,11 @@ async def reference_view(
 async def envmap_texture(
     envmap_id: str,
     request: Request,
-    envmaps: EnvmapsDep,
-    services: ServicesDep,
     renders: RenderDep,
     rows: Annotated[int, Query(ge=8, le=2048, description="rows of the lat-long texture (area-resampled)")] = 256,
 ) -> Response:
     """The environment map as little-endian float16 RGB, rows x 2 rows x 3, row 0 = +Y (the viewer's background)."""
-    from relight.gl.views import envmap_texture as make_texture
-
-    await envmaps.get(envmap_id)  # 404 for an unknown map
-    key = ("texture", envmap_id, rows)
-    cached = renders.cached(key)
-    if cached is None:
-        await envmaps.input_ok(envmap_id)
-        path = str(services.store.path(envmap_id))
-        fut = services.cluster.submit(make_texture, path, rows, key=f"relight-texture-{envmap_id[:16]}-{rows}",
-                                      max_pixels=services.settings.max_pixels)
-        try:
-            cached = await asyncio.wait_for(fut, TEXTURE_TIMEOUT_S)
-        except InputError as exc:
-            raise Unprocessable(str(exc)) from None
-        renders.keep(key, cached)
-    data, h, w = cached
+    data, h, w = await renders.texture(envmap_id, rows)
     etag = f'"{envmap_id[:32]}-{rows}"'
     headers = {"X-Texture-Shape": f"{h},{w},3", "ETag": etag, "Cache-Control": "public, max-age=31536000, immutable",
                "Access-Control-Expose-Headers": "X-Texture-Shape"}

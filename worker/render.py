@@ -1,0 +1,35 @@
+"""Image tasks behind the viewer's endpoints that the server submits to Dask: thin wrappers over
+:mod:`relight.gl.views` that find the uploaded map in the blob store (untrusted bytes are decoded only in a worker
+process, docs/facts.md).
+
+* :func:`reference_image` — the angular-domain brute force of the unit sphere for one distant view
+  (``relight.gl.views.reference_sphere_image``, seed 000 eqs. 1-2).
+* :func:`envmap_texture` — the map as float16 RGB lat-long texels for the viewer's background
+  (``relight.gl.views.envmap_texture``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from relight.worker.blobs import BlobStore
+
+
+def reference_image(store_root: str, envmap_digest: str, brdf_spec: Any, view: list[float], size: int, *,
+                    env_rows: int | None, max_pixels: int | None) -> NDArray[np.float32]:
+    """(size, size, 3) brute-force image of the sphere lit by the uploaded map ``envmap_digest``."""
+    from relight.gl.views import reference_sphere_image
+
+    path = str(BlobStore(store_root).path(envmap_digest))
+    return reference_sphere_image(path, brdf_spec, view, size, env_rows=env_rows, max_pixels=max_pixels)
+
+
+def envmap_texture(store_root: str, envmap_digest: str, rows: int, *,
+                   max_pixels: int | None) -> tuple[bytes, int, int]:
+    """The uploaded map ``envmap_digest`` as little-endian float16 RGB: (bytes, height, width)."""
+    from relight.gl.views import envmap_texture as texture
+
+    return texture(str(BlobStore(store_root).path(envmap_digest)), rows, max_pixels=max_pixels)
