@@ -63,6 +63,7 @@ bench: $(STAMP) web/node_modules/.installed
 	$(BIN)/python bench/service.py
 	$(BIN)/python bench/viewer.py
 	$(BIN)/python bench/startup.py
+	$(BIN)/python bench/blas_threads.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache web/node_modules

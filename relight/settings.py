@@ -1,12 +1,19 @@
 """The numerical core's settings, read once per process from ``RELIGHT_*`` environment variables.
 
 ``RELIGHT_THREADS`` (default 1) is the one channel for the core's thread pools: ducc0's transforms get it as
-``nthreads`` (:mod:`relight.sh`) and BLAS (OpenBLAS under NumPy) is limited to it through threadpoolctl when
-:mod:`relight.sh` loads, so a process never runs the two pools at their own defaults side by side. That matters:
-OpenBLAS starts a second thread from order 64 on and slows ducc0 with it (docs/facts.md, "do not run two thread
-pools"; 46 ms against 17.5 ms pinned, issue 11). The service's Dask worker processes inherit the server's
-environment, so they read the same value. A BLAS library loaded after :mod:`relight.sh` (SciPy's own OpenBLAS,
-with ``scipy.linalg``) is limited by calling :func:`limit_blas_threads` again.
+``nthreads`` (:mod:`relight.sh`) and every BLAS library is limited to it, so a process never runs the two pools at
+their own defaults side by side. That matters: OpenBLAS starts a second thread from order 64 on and slows ducc0
+with it (docs/facts.md, "do not run two thread pools"; 46 ms against 17.5 ms pinned, issue 11; ``bench/blas_threads.py``
+measures it on this machine). NumPy's and SciPy's wheels each bundle their own OpenBLAS, loaded at different times
+(SciPy's by ``scipy.special``, ``scipy.linalg``, ``scipy.optimize``, ``scipy.spatial``), so the limit is applied
+two ways, both from :data:`SETTINGS`:
+
+* :func:`pin_blas_environment` (called when the ``relight`` package is imported) sets ``OPENBLAS_NUM_THREADS``,
+  which OpenBLAS reads when it initialises: every BLAS library loaded later in this process, or in a child process
+  (the service's Dask workers), starts with the setting. It overwrites a value set by hand: ``RELIGHT_THREADS`` is
+  the channel, not a second one next to it.
+* :func:`limit_blas_threads` (called when :mod:`relight.sh` loads) limits the libraries loaded *before* relight
+  (NumPy imported first) through threadpoolctl.
 """
 
 from __future__ import annotations
@@ -44,8 +51,21 @@ class CoreSettings:
 SETTINGS: Final = CoreSettings.from_env()
 
 
+#: What OpenBLAS reads at initialisation (both wheels' builds, ``libscipy_openblas``, read this name).
+BLAS_THREADS_VAR: Final = "OPENBLAS_NUM_THREADS"
+
+
+def pin_blas_environment(threads: int | None = None) -> None:
+    """BLAS libraries loaded from now on (here and in child processes) start with ``threads`` (default
+    :data:`SETTINGS`'s) threads."""
+    os.environ[BLAS_THREADS_VAR] = str(SETTINGS.threads if threads is None else threads)
+
+
 def limit_blas_threads(threads: int | None = None) -> None:
-    """Limit every BLAS library loaded in this process to ``threads`` (default :data:`SETTINGS`'s)."""
+    """Limit every BLAS library loaded in this process to ``threads`` (default :data:`SETTINGS`'s), and those
+    loaded later (:func:`pin_blas_environment`)."""
     from threadpoolctl import threadpool_limits
 
-    threadpool_limits(limits=SETTINGS.threads if threads is None else threads, user_api="blas")
+    n = SETTINGS.threads if threads is None else threads
+    pin_blas_environment(n)
+    threadpool_limits(limits=n, user_api="blas")
