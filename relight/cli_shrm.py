@@ -5,6 +5,8 @@
     relight reference ENVMAP --brdf SPEC --size S --view X,Y,Z --out MAP.exr     (:func:`reference_view`)
     relight reflect SHRM.exr --view X,Y,Z --out MAP.exr [--size S]              (eq. 12 map for a distant view)
     relight render SHRM.exr --view X,Y,Z --size N --out sphere.exr [--png sphere.png] [--local]
+    relight render --fit FIT.json --chain DIR --view X,Y,Z --size N --out OUT.exr [--mesh NAME
+                   --visibility none|ao|sh|sh-lobe]                           (seed 002: ``relight.cli_sg``)
 
 Errors raise :class:`relight.errors.InputError` (the CLI prints one line and exits with status 2).
 """
@@ -112,7 +114,16 @@ def cmd_reflect(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    """``relight render``: a sphere rendered with an SHRM file (global eq. 12, or local eq. 6 with ``--local``)."""
+    """``relight render``: a sphere rendered with an SHRM file (global eq. 12, or local eq. 6 with ``--local``);
+    with ``--fit`` and ``--chain`` seed 002's Gaussian lobes instead (``relight.cli_sg.render_gaussian``)."""
+    if args.fit is not None or args.chain is not None:
+        from relight.cli_sg import render_gaussian
+
+        return render_gaussian(args)
+    if args.shrm is None:
+        raise InputError("render needs an SHRM file, or --fit FIT.json --chain DIR")
+    if args.mesh is not None or args.visibility != "none":
+        raise InputError("--mesh and --visibility need --fit and --chain (Gaussian lobes)")
     from relight.envmap.display import write_png_preview
     from relight.envmap.exr import write_exr
     from relight.shrm import render_sphere
@@ -141,12 +152,16 @@ def register(subparsers: Any) -> None:
     rf.add_argument("--out", required=True)
     rf.set_defaults(func=cmd_reflect)
 
-    rd = subparsers.add_parser("render", help="render a sphere with an SHRM (orthographic camera, +Y up)")
-    rd.add_argument("shrm")
+    rd = subparsers.add_parser("render", help="render a sphere with an SHRM, or a sphere or mesh with Gaussian "
+                               "lobes (orthographic camera, +Y up)")
+    rd.add_argument("shrm", nargs="?", help="SHRM .exr (omit with --fit/--chain)")
     rd.add_argument("--view", required=True, help="X,Y,Z direction toward the (distant) viewer")
     rd.add_argument("--size", type=int, required=True, help="image size N (N x N)")
     rd.add_argument("--out", required=True, help="output EXR")
     rd.add_argument("--png", help="also write a tone-mapped PNG preview")
     rd.add_argument("--exposure", type=float, default=0.0, help="PNG exposure in stops")
     rd.add_argument("--local", action="store_true", help="evaluate the local SHRM per pixel (eq. 6)")
+    from relight.cli_sg import add_render_arguments
+
+    add_render_arguments(rd)
     rd.set_defaults(func=cmd_render)

@@ -63,8 +63,9 @@ class MeshRender:
 
 def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, view: NDArray[np.floating],
                         size: int, spp: int, albedo: float = 1.0, max_depth: int = 2, seed: int = 0,
-                        texels: int = 8) -> MeshRender:
-    """Render the (unit-ball) mesh under the lat-long map (negatives clamped) seen along V (module docstring)."""
+                        texels: int = 8, bsdf: dict[str, Any] | None = None) -> MeshRender:
+    """Render the (unit-ball) mesh under the lat-long map (negatives clamped) seen along V (module docstring);
+    ``bsdf`` (a ``relight.mitsuba_twin.twin`` dictionary) replaces the Lambertian of ``albedo``."""
     mi = mitsuba_module()
     p = np.maximum(np.asarray(pixels, dtype=np.float64), 0.0)
     reason = check_bitmap_shape(p.shape)
@@ -91,7 +92,7 @@ def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, vie
             },
             "emitter": {"type": "envmap", "bitmap": mi.Bitmap(bitmap)},
             "mesh": {"type": "obj", "filename": str(obj), "face_normals": False,
-                     "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [albedo] * 3}}},
+                     "bsdf": bsdf or {"type": "diffuse", "reflectance": {"type": "rgb", "value": [albedo] * 3}}},
         }
         t0 = time.perf_counter()
         img = np.array(mi.render(mi.load_dict(scene), spp=spp, seed=mi.UInt32(seed)), dtype=np.float64)

@@ -52,3 +52,41 @@ def test_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     assert "lobes" in capsys.readouterr().err
     assert main(["fit", "kajiya-kay:s=8", "--out", str(tmp_path / "x.json")]) == 2
     assert "isotropic" in capsys.readouterr().err
+
+
+def test_render_with_fit_and_chain(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from relight.brdf.spec import parse_brdf
+    from relight.envmap import read_image
+    from relight.gaussian_chain import read_chain
+    from relight.sg_render import render_sphere_gaussian
+
+    env = tmp_path / "env.exr"
+    write_exr(env, np.asarray(resample_latlong(read_envmap(DATA / "courtyard.exr").pixels, 32), dtype=np.float32))
+    fit, chain = tmp_path / "fit.json", tmp_path / "chain"
+    assert main(["fit", "torrance-sparrow:alpha=0.3,fresnel=none", "--elevations", "4", "--out", str(fit)]) == 0
+    assert main(["chain", str(env), "--levels", "6", "--ratio", "sqrt2", "--out", str(chain)]) == 0
+    view = ["--view", "0,0.3,1", "--size", "24"]
+    out = tmp_path / "sphere.exr"
+    assert main(["render", "--fit", str(fit), "--chain", str(chain), *view, "--supersample", "1",
+                 "--out", str(out)]) == 0
+    # the file is the CPU renderer's image of the same material and chain (stored as float32 EXR)
+    want = render_sphere_gaussian(parse_brdf(str(fit)), read_chain(chain), np.array([0, 0.3, 1]), 24)  # type: ignore[arg-type]
+    np.testing.assert_allclose(read_image(out)[0], want, rtol=1e-6, atol=1e-6)
+    capsys.readouterr()
+    mesh_out = tmp_path / "bunny.exr"
+    assert main(["render", "--fit", str(fit), "--chain", str(chain), *view, "--mesh", "bunny", "--visibility",
+                 "sh", "--rays", "64", "--out", str(mesh_out)]) == 0
+    text = capsys.readouterr().out
+    assert "mesh bunny" in text and "visibility before clamping" in text
+    img = read_image(mesh_out)[0]
+    assert img.shape == (24, 24, 3) and np.all(np.isfinite(img)) and img.max() > 0.0
+    # errors: no SHRM and no fit; visibility on the sphere; a non-Gaussian material as --fit
+    assert main(["render", *view, "--out", str(out)]) == 2
+    assert "SHRM" in capsys.readouterr().err
+    assert main(["render", "--fit", str(fit), "--chain", str(chain), *view, "--visibility", "ao",
+                 "--out", str(out)]) == 2
+    assert "--mesh" in capsys.readouterr().err
+    phong = tmp_path / "phong.json"
+    phong.write_text(json.dumps({"kind": "phong", "s": 10}))
+    assert main(["render", "--fit", str(phong), "--chain", str(chain), *view, "--out", str(out)]) == 2
+    assert "gaussian-lobes" in capsys.readouterr().err

@@ -45,7 +45,9 @@ def test_error_table_torrance_sparrow_k3() -> None:
     # interpolated mid-elevations: within 1.5x the larger neighbour from 37 degrees on; below, the K = 3 optimum
     # switches basin once (one wide lobe -> two lobes across the plane of incidence, measured 4.2 % at 34 degrees
     # between 1.5 % and 1.4 %, with the order that fits the mid-elevation best; 6.4 % with parameter matching alone),
-    # which interpolating parameters cannot follow -- reported, not hidden:
+    # which interpolating parameters cannot follow -- reported, not hidden (a backward continuation with a
+    # Viterbi choice among candidates only moved the switch to 28 degrees, 3.3 %). The default fit (lobes added
+    # where needed, next test) meets the rule everywhere.
     mid = np.asarray(m.fit["mid_errors"])
     neigh = np.maximum(e[:-1], e[1:])
     tail = np.degrees(np.asarray(m.fit["mid_elevations"])) > 37.0
@@ -63,10 +65,18 @@ def test_more_lobes_where_needed_beat_the_targets() -> None:
     # 81 degrees (targets 5, 12, 19 %) and 13.1 % at 87 degrees (K = 3: 29 %)
     print("errors %", np.round(100 * e, 2).tolist(), "lobes used", used.tolist())
     assert np.all(used[deg < 60.0] == 3) and used.max() > 3
+    assert m.n_lobes == used.max()  # slots no elevation needed are dropped
     assert np.all(e[deg <= 50.0] <= 0.025)
     assert e[np.argmin(abs(deg - 62.1))] <= 0.025
     assert e[np.argmin(abs(deg - 74.6))] <= 0.03
     assert e[np.argmin(abs(deg - 80.8))] <= 0.055
+    # the continuity rule at all 14 mid-elevations: measured at most 1.38x the larger neighbour (65
+    # degrees, where a fourth lobe fades in; 1.32x at 34 degrees, where this fit's lobe order happens to follow
+    # the basin switch), after dead lobes are pinned toward the heavier side on a tie -- 2.6x before (a 1 %
+    # lobe crossing the plane of incidence half-way). Margin to 1.5: 8 %.
+    mid = np.asarray(m.fit["mid_errors"])
+    neigh = np.maximum(e[:-1], e[1:])
+    assert np.all(mid <= 1.5 * neigh), (mid / neigh).round(2)
 
 
 def test_normal_view_has_mu_zero_and_canonical_order_is_stable() -> None:
