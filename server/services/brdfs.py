@@ -16,10 +16,14 @@ from relight.contract.models import BrdfPublic
 from relight.errors import InputError
 from relight.server.config import Settings
 from relight.server.db import Brdf, Database
-from relight.server.problems import BadRequest, ContentTooLarge, NotFound, Unprocessable
+from relight.server.problems import NotFound, Unprocessable
+from relight.server.services import uploads
 from relight.server.services.base import content_id, in_thread, utc
 from relight.worker.blobs import DIGEST_RE, BlobStore
 from relight.worker.specs import check_client_string
+
+#: A MERL file starts with its three int32 dimensions (relight.brdf.measured).
+MERL_HEADER_BYTES = 12
 
 
 def canonical_spec(spec: dict[str, Any] | str) -> tuple[dict[str, Any], Any]:
@@ -127,39 +131,25 @@ class BrdfService:
         checked by size and header while streaming and then read by the core."""
         from relight.brdf.measured import MERL_DIMS, MERL_FILE_BYTES, read_merl
 
-        cap = min(MERL_FILE_BYTES, self.settings.max_upload_bytes)
-        if content_length is not None:
-            try:
-                declared = int(content_length)
-            except ValueError:
-                raise BadRequest(f"Content-Length must be an integer, got {content_length!r}") from None
-            if declared > cap:
-                raise ContentTooLarge(f"the body is {declared} bytes; a MERL file is exactly {MERL_FILE_BYTES} bytes"
-                                      f" and this server accepts at most {self.settings.max_upload_bytes}")
-        writer = self.store.writer()
-        try:
-            head = b""
-            async for chunk in chunks:
-                if writer.size + len(chunk) > cap:
-                    raise ContentTooLarge(f"the body exceeds {cap} bytes (a MERL file is exactly {MERL_FILE_BYTES})")
-                if len(head) < 12:
-                    head += chunk[: 12 - len(head)]
-                writer.write(chunk)
-            if len(head) < 12:
-                raise Unprocessable(f"a MERL file starts with three int32 dimensions; the body has {writer.size} "
+        def check_head(head: bytes) -> None:
+            if len(head) < MERL_HEADER_BYTES:
+                raise Unprocessable(f"a MERL file starts with three int32 dimensions; the body has {len(head)} "
                                     "bytes")
-            dims = struct.unpack("<3i", head)
+            dims = struct.unpack("<3i", head[:MERL_HEADER_BYTES])
             if dims != tuple(MERL_DIMS):
                 raise Unprocessable(f"MERL dimensions must be {tuple(MERL_DIMS)}, the file says {dims}")
-            if writer.size != MERL_FILE_BYTES:
-                raise Unprocessable(f"a MERL file is exactly {MERL_FILE_BYTES} bytes, the body has {writer.size}")
-            digest = await in_thread(writer.finish)
+
+        cap = min(MERL_FILE_BYTES, self.settings.max_upload_bytes)
+        async with uploads.receive(self.store, chunks, content_length, cap=cap, what="the MERL .binary file",
+                                   head_bytes=MERL_HEADER_BYTES, check_head=check_head,
+                                   limit=f"{cap} bytes (a MERL file is exactly {MERL_FILE_BYTES} bytes; this server "
+                                         f"accepts at most {self.settings.max_upload_bytes})") as up:
+            if up.size != MERL_FILE_BYTES:
+                raise Unprocessable(f"a MERL file is exactly {MERL_FILE_BYTES} bytes, the body has {up.size}")
             try:
-                await in_thread(read_merl, writer.tmp_path)  # the core's own checks (finite values ...)
+                await in_thread(read_merl, up.writer.tmp_path)  # the core's own checks (finite values ...)
             except InputError as exc:
-                raise Unprocessable(str(exc).replace(writer.tmp_path.name, "the upload")) from None
-            await in_thread(self.store._install, writer.tmp_path, digest)
-        except BaseException:
-            writer.abort()
-            raise
+                raise Unprocessable(str(exc).replace(up.writer.tmp_path.name, "the upload")) from None
+            await in_thread(self.store._install, up.writer.tmp_path, up.digest)
+            digest = up.digest
         return await self.register({"kind": "merl", "sha256": digest}, measured_sha256=digest)

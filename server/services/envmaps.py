@@ -31,13 +31,12 @@ from relight.server.cluster import Cluster
 from relight.server.config import Settings
 from relight.server.db import Database, Envmap
 from relight.server.problems import (
-    BadRequest,
-    ContentTooLarge,
     NotFound,
     Unavailable,
     Unprocessable,
     UnsupportedMediaType,
 )
+from relight.server.services import uploads
 from relight.server.services.base import in_thread, utc
 from relight.server.services.metrics import Metrics
 from relight.worker import tasks
@@ -125,42 +124,12 @@ class EnvmapService:
     # ------------------------------------------------------------------------------------------------ upload
     async def ingest_stream(self, chunks: AsyncIterator[bytes], content_length: str | None,
                             name: str | None) -> tuple[EnvmapPublic, bool]:
-        """Store and analyse an upload; returns the map and whether it is new (201) or known (200)."""
-        cap = self.settings.max_upload_bytes
-        if content_length is not None:
-            try:
-                declared = int(content_length)
-            except ValueError:
-                raise BadRequest(f"Content-Length must be an integer, got {content_length!r}") from None
-            if declared > cap:
-                self.metrics.inc("uploads_rejected_total")
-                raise ContentTooLarge(f"the body is {declared} bytes; the limit is {cap} bytes")
-        writer = self.store.writer()
-        try:
-            head = b""
-            sniffed = False
-            async for chunk in chunks:
-                if not chunk:
-                    continue
-                if writer.size + len(chunk) > cap:
-                    raise ContentTooLarge(f"the body exceeds the limit of {cap} bytes")
-                if not sniffed:
-                    head += chunk[: _SNIFF_BYTES - len(head)]
-                    if len(head) >= _SNIFF_BYTES:
-                        self._check_magic(head)
-                        sniffed = True
-                writer.write(chunk)
-            if writer.size == 0:
-                raise Unprocessable("the request body is empty: send the image file as the body")
-            if not sniffed:
-                self._check_magic(head)
-            digest = await in_thread(writer.finish)
-            return await self._ingest_file(writer, digest, name)
-        except BaseException as exc:
-            if isinstance(exc, ContentTooLarge | UnsupportedMediaType | Unprocessable):
-                self.metrics.inc("uploads_rejected_total")
-            writer.abort()
-            raise
+        """Store and analyse an upload (:func:`relight.server.services.uploads.receive`, its type sniffed from the
+        first bytes); returns the map and whether it is new (201) or known (200)."""
+        async with uploads.receive(self.store, chunks, content_length, cap=self.settings.max_upload_bytes,
+                                   what="the image file", head_bytes=_SNIFF_BYTES, check_head=self._check_magic,
+                                   metrics=self.metrics) as up:
+            return await self._ingest_file(up.writer, up.digest, name)
 
     def _check_magic(self, head: bytes) -> None:
         if sniff(head) is None:

@@ -32,13 +32,20 @@ from relight.mesh.load import SNIFF_BYTES, sniff
 from relight.server.cluster import Cluster
 from relight.server.config import Settings
 from relight.server.db import Database, Mesh
-from relight.server.problems import BadRequest, ContentTooLarge, NotFound, Unprocessable, UnsupportedMediaType
+from relight.server.problems import NotFound, Unprocessable, UnsupportedMediaType
+from relight.server.services import uploads
 from relight.server.services.base import in_thread, utc
 from relight.server.services.metrics import Metrics
 from relight.worker import meshes as mesh_tasks
 from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore, check_digest
 
 ACCEPTED = "Wavefront OBJ, glTF 2.0 (.gltf with embedded buffers) or GLB"
+
+
+def _check_mesh_head(head: bytes) -> None:
+    if sniff(head) is None:
+        raise UnsupportedMediaType(f"unrecognised mesh file (the body starts with {head[:8].hex(' ')}); "
+                                   f"accepted formats are {ACCEPTED}")
 
 
 class MeshService:
@@ -96,44 +103,17 @@ class MeshService:
     # ------------------------------------------------------------------------------------------------ upload
     async def ingest_stream(self, chunks: AsyncIterator[bytes], content_length: str | None,
                             name: str | None) -> tuple[MeshPublic, bool]:
-        """Store and decode an upload; the mesh and whether it is new (201) or known (200)."""
-        cap = self.max_bytes
-        if content_length is not None:
-            try:
-                declared = int(content_length)
-            except ValueError:
-                raise BadRequest(f"Content-Length must be an integer, got {content_length!r}") from None
-            if declared > cap:
-                self.metrics.inc("uploads_rejected_total")
-                raise ContentTooLarge(f"the body is {declared} bytes; the mesh size limit is {cap} bytes")
-        writer = self.store.writer()
-        try:
-            head = b""
-            async for chunk in chunks:
-                if not chunk:
-                    continue
-                if writer.size + len(chunk) > cap:
-                    raise ContentTooLarge(f"the body exceeds the mesh size limit of {cap} bytes")
-                if len(head) < SNIFF_BYTES:
-                    head += chunk[: SNIFF_BYTES - len(head)]
-                writer.write(chunk)
-            if writer.size == 0:
-                raise Unprocessable("the request body is empty: send the mesh file as the body")
-            if sniff(head) is None:
-                raise UnsupportedMediaType(f"unrecognised mesh file (the body starts with {head[:8].hex(' ')}); "
-                                           f"accepted formats are {ACCEPTED}")
-            digest = await in_thread(writer.finish)
-            existing = await in_thread(self._get_row, digest)
-            if existing is not None and self.store.has(digest):
-                writer.abort()
+        """Store and decode an upload (:func:`relight.server.services.uploads.receive`); the mesh and whether it is
+        new (201) or known (200)."""
+        async with uploads.receive(self.store, chunks, content_length, cap=self.max_bytes, what="the mesh file",
+                                   head_bytes=SNIFF_BYTES, check_head=_check_mesh_head,
+                                   limit=f"the mesh size limit of {self.max_bytes} bytes", metrics=self.metrics) as up:
+            existing = await in_thread(self._get_row, up.digest)
+            if existing is not None and self.store.has(up.digest):
+                up.writer.abort()
                 return self._public(existing), False
-            await in_thread(self.store._install, writer.tmp_path, digest)
-        except BaseException as exc:
-            if isinstance(exc, ContentTooLarge | UnsupportedMediaType | Unprocessable):
-                self.metrics.inc("uploads_rejected_total")
-            writer.abort()
-            raise
-        return await self._ingest_blob(digest, writer.size, name, known=existing is not None)
+            await in_thread(self.store._install, up.writer.tmp_path, up.digest)
+        return await self._ingest_blob(up.digest, up.size, name, known=existing is not None)
 
     async def _ingest_blob(self, digest: str, size: int, name: str | None, *, known: bool) -> tuple[MeshPublic, bool]:
         """Decode the stored upload ``digest`` and record it; an upload that fails to decode is deleted."""
