@@ -16,6 +16,12 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 MAX_EXPONENT = 1.0e5
 #: Service limit on roughness parameters (alpha, sigma).
 MAX_ROUGHNESS = 10.0
+#: Service limit: the smallest microfacet roughness (alpha, sigma). The Phong-Beckmann equivalence s = 2 / alpha^2 - 2
+#: (Walter et al. 2007, §5.2) maps MAX_EXPONENT to alpha = 0.00447; rounded up. Narrower lobes would need orders far
+#: beyond any server's limit, and at alpha ~ 1e-300 the core's error analysis underflows to "order 0, error 0".
+MIN_ROUGHNESS = 0.005
+#: Service limit on the terms of a sum (the object form's ``lobes`` and the ``a+b+...`` string form alike).
+MAX_SUM_LOBES = 8
 #: Service limit on a conductor's complex index of refraction (eta, k).
 MAX_IOR = 100.0
 
@@ -66,14 +72,14 @@ class MicrofacetSpec(_Spec):
     """Seed 000's simplified microfacet model (eq. 11), sigma in radians."""
 
     kind: Literal["microfacet"]
-    sigma: float = Field(gt=0.0, le=MAX_ROUGHNESS)
+    sigma: float = Field(ge=MIN_ROUGHNESS, le=MAX_ROUGHNESS)
 
 
 class TorranceSparrowSpec(_Spec):
     """Microfacet reflection (Walter et al. 2007) with Beckmann or GGX and optional Fresnel."""
 
     kind: Literal["torrance-sparrow"]
-    alpha: float = Field(gt=0.0, le=MAX_ROUGHNESS)
+    alpha: float = Field(ge=MIN_ROUGHNESS, le=MAX_ROUGHNESS)
     distribution: Literal["beckmann", "ggx"] = "beckmann"
     fresnel: Literal["none", "schlick", "conductor"] = "none"
     f0: Color01 | None = None
@@ -85,7 +91,7 @@ class GGXSpec(_Spec):
     """Torrance-Sparrow with the GGX distribution."""
 
     kind: Literal["ggx"]
-    alpha: float = Field(gt=0.0, le=MAX_ROUGHNESS)
+    alpha: float = Field(ge=MIN_ROUGHNESS, le=MAX_ROUGHNESS)
     fresnel: Literal["none", "schlick", "conductor"] = "none"
     f0: Color01 | None = None
     eta: Positive | Annotated[list[Positive], AfterValidator(_grey_or_rgb)] | None = None
@@ -118,7 +124,7 @@ class WardSpec(_Spec):
     kind: Literal["ward"]
     rho_d: Color01
     rho_s: Color01
-    alpha: float = Field(gt=0.0, le=MAX_ROUGHNESS)
+    alpha: float = Field(ge=MIN_ROUGHNESS, le=MAX_ROUGHNESS)
 
 
 class OrenNayarSpec(_Spec):
@@ -147,7 +153,7 @@ class SumSpec(_Spec):
     """A material made of several lobes, each prefiltered about its own centre."""
 
     kind: Literal["sum"]
-    lobes: list[LobeSpec] = Field(min_length=1, max_length=8)
+    lobes: list[LobeSpec] = Field(min_length=1, max_length=MAX_SUM_LOBES)
 
 
 BrdfSpec = Annotated[

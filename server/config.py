@@ -28,11 +28,14 @@ class Settings(BaseSettings):
     threads_per_worker: int = Field(1, ge=1)
     worker_memory_limit: str = Field("4GiB", description="embedded cluster: memory limit per worker process")
 
-    max_upload_bytes: int = Field(256 * MiB, ge=1)
+    max_upload_bytes: int = Field(256 * MiB, ge=1, description="largest file body (uploads)")
+    max_json_bytes: int = Field(8 * MiB, ge=1, description="largest JSON body (a lobe1d table of 65536 RGB samples "
+                                "is about 5 MiB)")
     max_pixels: int = Field(4096 * 2048, ge=1, description="largest environment map (width x height)")
     max_order: int = Field(1024, ge=0, description="largest order F a job may use")
     max_p_order: int = Field(16, ge=0, description="largest view order P a job may use")
     max_size: int = Field(2048, ge=2, description="largest output rows S")
+    max_output_bytes: int = Field(2 << 30, ge=1, description="largest result a job may write (float32 RGB layers)")
     max_active_jobs: int = Field(64, ge=1, description="queued + running jobs; more answer 429")
     decode_timeout_s: float = Field(120.0, gt=0, description="time limit for decoding one upload in a worker")
     blob_cache_bytes: int = Field(256 * MiB, ge=0, description="verified result bytes kept in memory for GETs")

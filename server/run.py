@@ -9,6 +9,7 @@ import uvicorn
 from fastapi import FastAPI
 
 from relight.server.config import Settings
+from relight.server.limits import BoundedHttpToolsProtocol
 from relight.server.main import create_app
 
 
@@ -28,7 +29,8 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None
 
     app = create_app(settings, on_ready=ready)
     config = uvicorn.Config(app, log_level=settings.log_level.lower() if settings.log_level else "info",
-                            access_log=False, lifespan="on", timeout_graceful_shutdown=5)
+                            access_log=False, lifespan="on", timeout_graceful_shutdown=5,
+                            http=BoundedHttpToolsProtocol)
     server = uvicorn.Server(config)
     try:
         server.run(sockets=[sock])

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight.errors import InputError
 from relight.jsonable import jsonable as _jsonable
 from relight.planning.job import uses_reflection_map  # the dispatch rule lives with the planner
 from relight.worker.blobs import BlobStore
@@ -116,6 +117,18 @@ def _general(
     return shrm_adapter.prefilter(pixels, lobe, params, report)
 
 
+def check_finite(layers: list[Layer]) -> None:
+    """A result with NaN or Inf texels is a failure with its reason (an input at the edge of float64, such as a
+    measured BRDF of 1e308 values, overflows while prefiltering), never a stored, "succeeded" result."""
+    bad = {layer.name or "map": int(np.count_nonzero(~np.isfinite(layer.pixels))) for layer in layers}
+    bad = {name: n for name, n in bad.items() if n}
+    if bad:
+        total = sum(bad.values())
+        where = ", ".join(f"{name}: {n}" for name, n in list(bad.items())[:4])
+        raise InputError(f"the result has {total} non-finite texels (NaN or Inf; {where}): the inputs overflow "
+                         "float arithmetic; nothing was stored")
+
+
 def compute_shrm(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
     """The ``shrm`` job kind: run one prefiltering job and store its result (dispatches on the BRDF).
 
@@ -148,6 +161,7 @@ def compute_shrm(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
         layers, representation, core_report, attributes = _general(env.pixels, lobe, params, report)
     compute_seconds = time.perf_counter() - t_compute
     report.check_cancelled()
+    check_finite(layers)
     import relight
 
     description = {

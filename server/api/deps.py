@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+from collections.abc import Mapping
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -101,29 +102,37 @@ RenderDep = Annotated[RenderService, Depends(get_render)]
 VisibilityDep = Annotated[VisibilityService, Depends(get_visibility)]
 
 
-def presented_key(request: Request) -> str | None:
-    auth = request.headers.get("authorization")
+def presented_key(headers: Mapping[str, str]) -> str | None:
+    auth = headers.get("authorization")
     if auth and auth[:7].lower() == "bearer ":
         return auth[7:].strip()
-    return request.headers.get("x-api-key")
+    return headers.get("x-api-key")
 
 
-async def require_api_key(request: Request) -> None:
-    """Off when no key hashes are configured; else the SHA-256 of the presented key must match one
-    (constant-time comparison against every configured hash)."""
-    settings: Settings = request.app.state.settings
+def key_problem(settings: Settings, headers: Mapping[str, str]) -> Unauthorized | None:
+    """None when the request may pass: no key hashes are configured, or the SHA-256 of the presented key matches
+    one (constant-time comparison against every configured hash). Else the 401 to answer."""
     if not settings.api_key_hashes:
-        return
-    key = presented_key(request)
+        return None
+    key = presented_key(headers)
     if not key:
-        raise Unauthorized("this server needs an API key: send 'Authorization: Bearer <key>' or 'X-API-Key'",
-                           headers={"WWW-Authenticate": "Bearer"})
+        return Unauthorized("this server needs an API key: send 'Authorization: Bearer <key>' or 'X-API-Key'",
+                            headers={"WWW-Authenticate": "Bearer"})
     digest = hashlib.sha256(key.encode()).hexdigest()
     ok = False
     for h in settings.api_key_hashes:
         ok |= hmac.compare_digest(digest, h)
     if not ok:
-        raise Unauthorized("the API key is not valid", headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
+        return Unauthorized("the API key is not valid", headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
+    return None
+
+
+async def require_api_key(request: Request) -> None:
+    """Raise :func:`key_problem`'s 401, if any (request bodies were checked already by
+    :class:`relight.server.limits.BodyLimit`, before they were read)."""
+    problem = key_problem(request.app.state.settings, request.headers)
+    if problem is not None:
+        raise problem
 
 
 ApiKey = Depends(require_api_key)

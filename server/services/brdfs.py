@@ -6,12 +6,14 @@ A BRDF's id is the SHA-256 of its canonical spec (``relight.brdf.spec.brdf_to_sp
 
 from __future__ import annotations
 
+import re
 import struct
 from collections.abc import AsyncIterator
 from typing import Any
 
-from pydantic import BaseModel
+from pydantic import BaseModel, TypeAdapter, ValidationError
 
+from relight.contract.brdfs import MAX_SUM_LOBES, BrdfSpec
 from relight.contract.models import BrdfPublic
 from relight.errors import InputError
 from relight.server.config import Settings
@@ -24,23 +26,54 @@ from relight.worker.specs import check_client_string
 
 #: A MERL file starts with its three int32 dimensions (relight.brdf.measured).
 MERL_HEADER_BYTES = 12
+_SPEC_ADAPTER: TypeAdapter[Any] = TypeAdapter(BrdfSpec)
+
+
+#: Longest spec string (eight terms with every parameter spelled out fit in a few hundred characters).
+MAX_SPEC_CHARS = 2048
+_TERM_START = re.compile(r"\s*[A-Za-z]")  # a term starts with its kind; "1e+5" splits into "...1e" and "5"
+
+
+def _string_bounds(spec: str) -> None:
+    """Length and term count of a spec string, checked before the core parses it (the object form's limits)."""
+    if len(spec) > MAX_SPEC_CHARS:
+        raise InputError(f"the spec string has {len(spec)} characters; at most {MAX_SPEC_CHARS} are accepted")
+    terms = sum(1 for piece in spec.split("+") if _TERM_START.match(piece))
+    if terms > MAX_SUM_LOBES:
+        raise InputError(f"the spec string is a sum of {terms} terms; at most {MAX_SUM_LOBES} are accepted "
+                         "(as for the object form's lobes)")
+
+
+def _service_limits(canon: dict[str, Any]) -> None:
+    """The canonical spec against the API's union (``relight.contract.brdfs``): the service limits hold whatever
+    form the request used (string, object), with the offending field named."""
+    try:
+        _SPEC_ADAPTER.validate_python(canon)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        where = ".".join(str(p) for p in err.get("loc", ()) if not str(p).endswith("Spec"))
+        value = err.get("input")
+        raise InputError(f"{where or 'spec'}: {err.get('msg', 'invalid')} (got {value!r:.80})") from None
 
 
 def canonical_spec(spec: dict[str, Any] | str) -> tuple[dict[str, Any], Any]:
     """Parse with the core (its validation is the authority) and return the canonical spec and the lobe.
 
-    Strings that would make the core open a file are refused first (``relight.worker.specs``)."""
+    Strings that would make the core open a file are refused first (``relight.worker.specs``), and so are strings
+    longer or with more terms than the object form allows; the canonical spec then meets the API's limits."""
     from relight.brdf.spec import brdf_to_spec, parse_brdf
 
     try:
         if isinstance(spec, str):
+            _string_bounds(spec)
             check_client_string(spec)
         lobe = parse_brdf(spec)
         canon = brdf_to_spec(lobe)
+        if not isinstance(canon, dict):
+            raise InputError(f"the core returned a non-object spec for {spec!r:.80}")
+        _service_limits(canon)
     except (InputError, ValueError, TypeError) as exc:
         raise Unprocessable(f"brdf: {exc}") from None
-    if not isinstance(canon, dict):
-        raise Unprocessable(f"brdf: the core returned a non-object spec for {spec!r}")
     return canon, lobe
 
 

@@ -100,6 +100,14 @@ class PlanService:
             raise Unprocessable(f"the output would have S = {raw.size} rows, above this server's limit of "
                                 f"{s.max_size}; give an explicit smaller size")
 
+        out = raw.to_json()["output"]
+        out_bytes = max(int(out["height"]) * int(out["width"]) * int(out["layers"]) * 3 * 4,
+                        int(out["exr_bytes_estimate"]))  # float32 RGB per layer: what the worker holds and writes
+        if out_bytes > s.max_output_bytes:
+            raise Unprocessable(f"the output would be {out['layers']} layers of {out['height']} x {out['width']} "
+                                f"texels = {out_bytes} bytes, above this server's limit of {s.max_output_bytes} "
+                                "bytes; give a smaller size, order or p_order", output_bytes=out_bytes)
+
         def finished() -> bool:
             with self.db.session() as sess:
                 return sess.scalar(select(Job.state).where(Job.id == prep.job_id)) == "succeeded"
