@@ -86,7 +86,7 @@ class BodyLimit:
                 return
             if int(declared) > limit:
                 await send_problem(send, 413, "content-too-large", "Content Too Large",
-                                   f"the body is {declared} bytes; this route accepts at most {limit} bytes", path)
+                                   f"the body is {declared} bytes; the limit of this route is {limit} bytes", path)
                 return
         if not has_body:
             await self.app(scope, receive, send)
@@ -104,7 +104,7 @@ class BodyLimit:
             size += len(chunk)
             if size > limit:
                 await send_problem(send, 413, "content-too-large", "Content Too Large",
-                                   f"the body exceeds {limit} bytes, the most this route accepts", path)
+                                   f"the body exceeds the limit of this route, {limit} bytes", path)
                 return
             chunks.append(chunk)
             if not message.get("more_body", False):
@@ -121,7 +121,7 @@ def _counting(receive: Receive, limit: int) -> Receive:
         if message["type"] == "http.request":
             seen += len(message.get("body", b""))
             if seen > limit:
-                raise ContentTooLarge(f"the body exceeds {limit} bytes, the most this route accepts")
+                raise ContentTooLarge(f"the body exceeds the limit of this route, {limit} bytes")
         return message
 
     return wrapped

@@ -71,7 +71,8 @@ def canonical_spec(spec: dict[str, Any] | str) -> tuple[dict[str, Any], Any]:
         canon = brdf_to_spec(lobe)
         if not isinstance(canon, dict):
             raise InputError(f"the core returned a non-object spec for {spec!r:.80}")
-        _service_limits(canon)
+        if isinstance(spec, str):  # objects met the union already (strings never name lobe1d tables)
+            _service_limits(canon)
     except (InputError, ValueError, TypeError) as exc:
         raise Unprocessable(f"brdf: {exc}") from None
     return canon, lobe
