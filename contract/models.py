@@ -423,12 +423,14 @@ class ScenePublic(Public):
 
 
 class Health(Public):
-    status: str
+    status: str = Field(description="ok, or degraded (the reasons are in problems)")
     version: str
     algorithm_version: str
-    scheduler: str
+    scheduler: str = Field(description="embedded or external (the address is never published)")
     workers: int
     database: str
+    problems: list[str] = Field(default_factory=list,
+                                description="what is degraded: workers, scheduler, database, disk")
 
 
 def parse_view(text: str) -> tuple[float, float, float]:

@@ -36,6 +36,11 @@ class Settings(BaseSettings):
     max_p_order: int = Field(16, ge=0, description="largest view order P a job may use")
     max_size: int = Field(2048, ge=2, description="largest output rows S")
     max_output_bytes: int = Field(2 << 30, ge=1, description="largest result a job may write (float32 RGB layers)")
+    plan_workers: int = Field(2, ge=1, description="sandbox processes that plan requests (/plan, submissions)")
+    plan_memory_bytes: int = Field(4 << 30, ge=256 << 20, description="address-space limit of each planning sandbox")
+    plan_timeout_s: float = Field(300.0, gt=0, description="time limit of one plan (order search, coefficients)")
+    min_free_bytes: int = Field(256 * MiB, ge=0, description="free disk below this in the blob store: /health "
+                                "says degraded")
     max_active_jobs: int = Field(64, ge=1, description="queued + running jobs; more answer 429")
     decode_timeout_s: float = Field(120.0, gt=0, description="time limit for decoding one upload in a worker")
     blob_cache_bytes: int = Field(256 * MiB, ge=0, description="verified result bytes kept in memory for GETs")

@@ -28,6 +28,7 @@ from relight.server.services.tradeoffs import TradeoffService
 from relight.server.services.visibility import VisibilityService
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import TOPIC
+from relight.worker.sandbox import SandboxPool
 
 log = logging.getLogger("relight.server")
 
@@ -74,7 +75,8 @@ class Services:
         envmaps = EnvmapService(settings, db, store, cluster, metrics)
         brdfs = BrdfService(settings, db, store)
         calibration = CalibrationService(cluster)
-        plans = PlanService(settings, db, store, envmaps, brdfs, calibration)
+        pool = SandboxPool(settings.plan_workers, settings.plan_memory_bytes)
+        plans = PlanService(settings, db, store, envmaps, brdfs, calibration, pool)
         jobs = JobService(settings, db, store, cluster, hub, metrics, envmaps)
         meshes = MeshService(settings, db, store, cluster, metrics)
         shrms = ShrmService(jobs, plans, envmaps, store, cluster)
@@ -122,4 +124,5 @@ class Services:
         await self.render.close()
         await self.calibration.close()
         await self.cluster.close()
+        self.plans.pool.close()
         self.db.dispose()

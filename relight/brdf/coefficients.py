@@ -24,10 +24,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.brdf.base import RadialLobe
+from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
 _GL_NODES = 16  # Gauss–Legendre points per panel
+#: Most (order + 1) x node products one radial transfer may take: 2^31 multiply-adds of Bonnet's recursion, about a
+#: minute of one core. A lobe1d table with a 1e-5 rad peak at order 4096 asks for 2.5e10 (and, computed whole, a
+#: 190 GiB Legendre table); such a request is refused before anything is allocated.
+MAX_QUADRATURE_WORK = 1 << 31
+#: Nodes per block when the Legendre table is built block by block: (order + 1) x this many float64 at a time
+#: (32 MiB at order 1023), whatever the node count.
+_NODE_BLOCK = 4096
 
 
 def legendre_p(lmax: int, t: FloatArray) -> FloatArray:
@@ -82,6 +90,13 @@ def _theta_nodes(lmax: int, width: float) -> tuple[FloatArray, FloatArray]:
     return nodes.ravel(), weights.ravel()
 
 
+def quadrature_nodes(lmax: int, width: float) -> int:
+    """How many nodes :func:`_theta_nodes` makes for this order and lobe width, computed without making them."""
+    h = min(np.pi / (2.0 * (lmax + 2)), max(width, 1e-4) / 12.0, np.pi / 64)
+    n_half = int(np.ceil((np.pi / 2) / h))
+    return (2 * (n_half + 40)) * _GL_NODES  # two halves of n_half panels and 40 graded ones each (upper bound)
+
+
 @dataclass(frozen=True)
 class RadialSpectrum:
     """Transfer factors and energies of a radial lobe.
@@ -117,13 +132,22 @@ def radial_transfer(lobe: RadialLobe, lmax: int) -> RadialSpectrum:
         rho_c = tr / lambda_l(lmax)[:, None]
         return RadialSpectrum(transfer=tr, band_energy=rho_c * rho_c,
                               total_energy=np.asarray(lobe.total_energy(), dtype=np.float64))  # type: ignore[attr-defined]
-    theta, w = _theta_nodes(lmax, lobe_width(lobe))
+    width = lobe_width(lobe)
+    n_nodes = quadrature_nodes(lmax, width)
+    if (lmax + 1) * n_nodes > MAX_QUADRATURE_WORK:
+        raise InputError(f"the lobe is too narrow for order {lmax}: its width {width:.3g} rad needs {n_nodes} "
+                         f"quadrature nodes, {(lmax + 1) * n_nodes:.3g} Legendre values in all (the limit is "
+                         f"{MAX_QUADRATURE_WORK:.3g}); widen the lobe or lower the order")
+    theta, w = _theta_nodes(lmax, width)
     t = np.cos(theta)
     u = np.asarray(lobe.u(t), dtype=np.float64)  # (N, C)
     if u.ndim == 1:
         u = u[:, None]
-    p = legendre_p(lmax, t)  # (lmax+1, N)
-    transfer = 2.0 * np.pi * (p * w[None, :]) @ u
+    transfer = np.zeros((lmax + 1, u.shape[1]))
+    for start in range(0, t.size, _NODE_BLOCK):  # the (lmax+1, N) table block by block: bounded memory
+        block = slice(start, start + _NODE_BLOCK)
+        transfer += (legendre_p(lmax, t[block]) * w[None, block]) @ u[block]
+    transfer *= 2.0 * np.pi
     lam = lambda_l(lmax)[:, None]
     rho = transfer / lam
     total = 2.0 * np.pi * (w @ (u * u))

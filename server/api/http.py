@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import asyncio
+from collections.abc import Awaitable
 from pathlib import Path
+from typing import TypeVar
 
 from starlette.requests import Request
 from starlette.responses import FileResponse, Response
+
+T = TypeVar("T")
 
 IMMUTABLE = "public, max-age=31536000, immutable"
 
@@ -46,3 +51,20 @@ def bytes_response(request: Request, content: bytes, digest: str, media_type: st
     if not_modified(request, etag):
         return Response(status_code=304, headers=cached_headers(etag))
     return Response(content, media_type=media_type, headers=cached_headers(etag))
+
+
+async def until_disconnect(request: Request, work: Awaitable[T], poll_s: float = 0.25) -> T:
+    """Await ``work`` unless the client goes away first: then it is cancelled (a plan's sandbox is killed) and the
+    request ends with no answer, as nobody is there to read one."""
+    task = asyncio.ensure_future(work)
+    try:
+        while True:
+            done, _ = await asyncio.wait({task}, timeout=poll_s)
+            if done:
+                return task.result()
+            if await request.is_disconnected():
+                task.cancel()
+                raise asyncio.CancelledError("the client disconnected")
+    finally:
+        if not task.done():
+            task.cancel()

@@ -19,6 +19,7 @@ from relight.server.services.brdfs import BrdfService
 from relight.server.services.calibration import CalibrationService
 from relight.server.services.envmaps import EnvmapService
 from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
+from relight.worker.sandbox import SandboxMemoryError, SandboxPool, SandboxTimeout
 from relight.worker.specs import to_core
 
 
@@ -40,9 +41,10 @@ def job_id_for(envmap_id: str, brdf_id: str, params: dict[str, Any]) -> str:
 
 class PlanService:
     def __init__(self, settings: Settings, db: Database, store: BlobStore, envmaps: EnvmapService,
-                 brdfs: BrdfService, calibration: CalibrationService) -> None:
+                 brdfs: BrdfService, calibration: CalibrationService, pool: SandboxPool) -> None:
         self.settings = settings
         self.calibration = calibration
+        self.pool = pool
         self.store = store
         self.db = db
         self.envmaps = envmaps
@@ -75,17 +77,18 @@ class PlanService:
     async def plan_prepared(self, prep: Prepared) -> PlanPublic:
         from relight.planning import JobPlan, plan_job
 
-        def run() -> JobPlan:
-            spec = to_core(prep.brdf.spec, self.store)
-            return plan_job(prep.envmap.model_dump(mode="json"), spec, prep.params)
-
         try:
-            raw = await in_thread(run)
+            spec = await in_thread(to_core, prep.brdf.spec, self.store)
+            raw: JobPlan = await self.pool.run(plan_job, prep.envmap.model_dump(mode="json"), spec, prep.params,
+                                               timeout=self.settings.plan_timeout_s)
         except (InputError, ValueError) as exc:
             raise Unprocessable(str(exc)) from None
         except (BlobMissing, BlobCorrupt) as exc:
             raise Unavailable(f"the measured BRDF file of {prep.brdf.id} is unusable ({exc}); upload it again") \
                 from None
+        except (SandboxMemoryError, SandboxTimeout) as exc:
+            raise Unprocessable(f"planning this request was stopped: {exc}; give explicit orders or a larger "
+                                "epsilon") from None
         if not raw.cost_model.calibrated:
             self.calibration.ensure()
         s = self.settings

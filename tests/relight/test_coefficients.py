@@ -101,3 +101,41 @@ def test_invalid_arguments() -> None:
         co.window_factors(4, "kaiser")
     with pytest.raises(ValueError):
         phong_order(-1.0, 0.1)
+
+
+def test_too_narrow_lobe_is_refused_before_allocating() -> None:
+    """Issue 12: a lobe1d peak 1e-5 rad wide at order 4096 would need a (4097 x 6e6) Legendre table (190 GiB). The
+    size is checked from the node count alone: the refusal allocates next to nothing (tracemalloc sees NumPy's
+    allocations) and names the width and the order."""
+    import tracemalloc
+
+    from relight.brdf.coefficients import MAX_QUADRATURE_WORK, quadrature_nodes, radial_transfer
+    from relight.brdf.spec import parse_brdf
+    from relight.errors import InputError
+
+    lobe = parse_brdf({"kind": "lobe1d", "t": [-1.0, 1.0 - 1e-10, 1.0], "u": [0.0, 0.0, 1.0]})
+    assert 4097 * quadrature_nodes(4096, 1.4e-5) > MAX_QUADRATURE_WORK
+    tracemalloc.start()
+    try:
+        with pytest.raises(InputError, match="too narrow for order 4096"):
+            radial_transfer(lobe, 4096)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 << 20
+
+
+def test_node_count_and_blocked_quadrature() -> None:
+    """quadrature_nodes is an upper bound of the nodes _theta_nodes makes (np.unique may merge a few graded edges),
+    and the block-by-block sum over nodes equals the closed form of Phong at order 300 (more nodes than one block)
+    to 1e-12: the blocks' partial sums only reorder the additions."""
+    from relight.brdf.coefficients import _NODE_BLOCK, _theta_nodes, phong_transfer, quadrature_nodes, radial_transfer
+    from relight.brdf.spec import parse_brdf
+
+    for lmax, width in [(10, 0.5), (100, 0.01), (300, 0.02), (2000, 1e-3)]:
+        n = _theta_nodes(lmax, width)[0].size
+        assert n <= quadrature_nodes(lmax, width) <= n + 64 * 16
+    lobe = parse_brdf("phong:s=500")
+    assert _theta_nodes(300, 0.1)[0].size > _NODE_BLOCK
+    got = radial_transfer(lobe, 300).transfer[:, 0]
+    np.testing.assert_allclose(got, phong_transfer(500.0, 300), rtol=0, atol=1e-12)

@@ -2,20 +2,31 @@
 
 from __future__ import annotations
 
+import asyncio
+import shutil
+from concurrent.futures import ThreadPoolExecutor
+
 from fastapi import APIRouter
 from starlette.responses import PlainTextResponse
 
 import relight
 from relight.contract.models import Health
 from relight.server.api.deps import ServicesDep
-from relight.server.services.base import in_thread
 
 router = APIRouter(tags=["health"])
 
 
+#: Seconds each health probe (database, scheduler) may take before it counts as failed.
+PROBE_TIMEOUT_S = 2.0
+#: The database probe's own thread: a flood of requests holding the shared thread pool cannot delay /health.
+_PROBE_THREAD = ThreadPoolExecutor(1, thread_name_prefix="relight-health")
+
+
 @router.get("/health", response_model=Health)
 async def health(services: ServicesDep) -> Health:
-    """Service status: the database answers and how many Dask workers are connected."""
+    """Service status: ``ok``, or ``degraded`` with the reasons in ``problems`` (no workers, the scheduler lost,
+    the database not answering, the blob store's disk full). The scheduler's address is not published: whoever
+    reaches a Dask scheduler can run code in the cluster."""
 
     def ping() -> str:
         from sqlalchemy import text
@@ -24,11 +35,28 @@ async def health(services: ServicesDep) -> Health:
             s.execute(text("SELECT 1"))
         return services.db.dialect
 
-    database = await in_thread(ping)
-    workers = await services.cluster.n_workers()
-    return Health(status="ok" if workers > 0 else "degraded", version=relight.__version__,
-                  algorithm_version=relight.ALGORITHM_VERSION, scheduler=services.cluster.address, workers=workers,
-                  database=database)
+    problems: list[str] = []
+    loop = asyncio.get_running_loop()
+    database = services.db.dialect
+    try:
+        await asyncio.wait_for(loop.run_in_executor(_PROBE_THREAD, ping), PROBE_TIMEOUT_S)
+    except Exception as exc:  # noqa: BLE001 - any failure of the probe is a degraded database
+        problems.append(f"database: not answering ({type(exc).__name__})")
+    workers = 0
+    try:
+        workers = await asyncio.wait_for(services.cluster.n_workers(), PROBE_TIMEOUT_S)
+    except Exception as exc:  # noqa: BLE001 - any failure of the probe means the scheduler is unreachable
+        problems.append(f"scheduler: lost ({type(exc).__name__})")
+    else:
+        if workers == 0:
+            problems.append("workers: none connected")
+    free = shutil.disk_usage(services.store.root).free
+    if free < services.settings.min_free_bytes:
+        problems.append(f"disk: {free} bytes free in the blob store, below {services.settings.min_free_bytes}")
+    return Health(status="degraded" if problems else "ok", version=relight.__version__,
+                  algorithm_version=relight.ALGORITHM_VERSION,
+                  scheduler="external" if services.settings.scheduler else "embedded", workers=workers,
+                  database=database, problems=problems)
 
 
 @router.get("/metrics", response_class=PlainTextResponse,
