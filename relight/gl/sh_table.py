@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from relight.errors import InputError
 from relight.gl import shaders
 from relight.gl.render import ORTHO_DISTANCE, create_context, view_projection
-from relight.view_maps import RIM_Z, check_layout
+from relight.view_maps import check_layout
 
 Mode = Literal["general", "fixed-light", "fixed-view"]
 MODES: Final[tuple[Mode, ...]] = ("general", "fixed-light", "fixed-view")
@@ -44,7 +44,7 @@ def shader_defines(order: int, layout: str, mode: Mode, target: str | None = Non
     if mode not in MODES:
         raise InputError(f"unknown SH-table mode {mode!r}; valid modes are {list(MODES)}")
     lay = check_layout(layout)
-    out: dict[str, object] = {"SH_ORDER": int(order), "RIM_Z": float(RIM_Z),
+    out: dict[str, object] = {"SH_ORDER": int(order),
                               "TABLE_PARABOLIC" if lay == "parabolic" else "TABLE_HEMI_OCTAHEDRAL": None,
                               _MODE_DEFINE[mode]: None, "OUTPUT_LINEAR": None}
     if target is not None:
@@ -208,28 +208,35 @@ class TableRenderer:
             geo.vbo.release()
 
     def draw(self, mode: Mode, geo: _Geometry, view: ArrayLike, lighting: ArrayLike | None, size: int,
-             *, background: float = 0.0) -> NDArray[np.float32]:
+             *, background: float = 0.0, frames: int = 1) -> NDArray[np.float32]:
         """A (size, size, 3) float32 image (row 0 at the top) of the geometry from the orthographic camera of
-        ``relight.gl.render`` looking along -view; the fixed modes use the data of the last :meth:`prepare`."""
+        ``relight.gl.render`` looking along -view; the fixed modes use the data of the last :meth:`prepare`.
+        ``frames`` > 1 draws that many frames (the view turning by 1 degree about +Y per frame, the lighting kept)
+        before the read-back, for timing (bench/shtable_modes.py)."""
         import moderngl
 
-        if not 1 <= size <= 4096:
-            raise InputError(f"size must be in 1..4096, got {size}")
+        if not 1 <= size <= 4096 or frames < 1:
+            raise InputError(f"size must be in 1..4096 and frames >= 1, got {size}, {frames}")
         v = np.asarray(view, dtype=np.float64)
         v = v / np.linalg.norm(v)
         prog = self.program(mode)
         self._uniforms(prog, v, lighting)
-        _set(prog, "u_view_projection", tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel()))
         color = self.ctx.texture((size, size), 4, dtype="f4")
         depth = self.ctx.depth_renderbuffer((size, size))
         fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         vao = self._vao(prog, geo, indexed=True)
         try:
             fbo.use()
-            fbo.clear(background, background, background, 1.0, depth=1.0)
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            vao.render(moderngl.TRIANGLES)
+            for k in range(frames - 1, -1, -1):  # the last frame is the asked-for view
+                c, s = np.cos(np.radians(k)), np.sin(np.radians(k))
+                vk = np.array([c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]])
+                if mode != "fixed-view":  # fixed-view: the view the data was prepared for (only the camera moves)
+                    _set(prog, "u_view", tuple(float(x) for x in vk))
+                _set(prog, "u_view_projection", tuple(view_projection(vk, "orthographic", ORTHO_DISTANCE).T.ravel()))
+                fbo.clear(background, background, background, 1.0, depth=1.0)
+                vao.render(moderngl.TRIANGLES)
             raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
         finally:
             vao.release()

@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Final, Literal
 
-from relight import conventions, envmap, resources, shrm
+from relight import conventions, envmap, resources, shrm, view_maps
 from relight.envmap import display
 
 Target = Literal["330", "300 es"]
@@ -63,6 +63,7 @@ def constants() -> dict[str, float | int]:
         "LUMA_R": float(conventions.LUMINANCE_WEIGHTS[0]),
         "LUMA_G": float(conventions.LUMINANCE_WEIGHTS[1]),
         "LUMA_B": float(conventions.LUMINANCE_WEIGHTS[2]),
+        "VIEW_RIM_Z": view_maps.RIM_Z,
     }
     out.update({f"CENTER_{k}": v for k, v in CENTERS.items()})
     out.update({f"FRAME_{k.upper()}": v for k, v in FRAMES.items()})
@@ -77,6 +78,7 @@ _SOURCES: Final = {
     "HALF_MAX": "relight.envmap.HALF_MAX (largest finite IEEE binary16)",
     "ACES_A": "relight.envmap.display.ACES_A (Narkowicz 2016)",
     "LUMA_R": "relight.conventions.LUMINANCE_WEIGHTS (Rec. 709)",
+    "VIEW_RIM_Z": "relight.view_maps.RIM_Z (SH-table view maps: z of the rim direction)",
     "CENTER_R": "relight.gl.shaders.CENTERS",
     "FRAME_MAP": "relight.gl.shaders.FRAMES",
     "TONEMAP_ACES": "relight.gl.shaders.TONEMAPS (relight.envmap.TONEMAP_OPERATORS + none)",

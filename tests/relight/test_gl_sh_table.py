@@ -13,12 +13,14 @@ Tolerances (why they are what they are):
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
 import relight.gl.render as gl_render
+import relight.gl.sh_rotation_glsl as sh_rotation_glsl
 from relight.brdf.spec import parse_frame_brdf
 from relight.gl.sh_table import MODES, TableRenderer
 from relight.indexing import full_block
@@ -168,3 +170,8 @@ def test_mesh_images_agree_across_modes(ctx: Any) -> None:
         assert np.array_equal(images[mode][..., 0] != -1.0, on)
         assert np.abs(images[mode] - images["general"]).max() <= 1e-4 * np.abs(images["general"][on]).max()
     r.release()
+
+
+def test_generated_rotation_glsl_is_current() -> None:
+    assert Path(sh_rotation_glsl.GENERATED).read_text(encoding="utf-8") == sh_rotation_glsl.glsl(), (
+        "web/shaders/generated/sh_rotation_bands.glsl is stale: run python -m relight.gl.sh_rotation_glsl --write")

@@ -14,9 +14,10 @@
 //                     gl_VertexID to texel gl_VertexID * SHR_COUNT + i (MODE_FIXED_LIGHT: L_p; MODE_FIXED_VIEW:
 //                     (S M)^T c(v_p), zero where the vertex faces away).
 // Table: a texture array of SHR_COUNT RGB layers, R x R texels over the view map (TABLE_PARABOLIC or
-// TABLE_HEMI_OCTAHEDRAL; relight/view_maps.py), bilinear, clamped to the edge; views below z = RIM_Z are moved to
+// TABLE_HEMI_OCTAHEDRAL; relight/view_maps.py), bilinear, clamped to the edge; views below z = VIEW_RIM_Z are moved to
 // the rim direction of their azimuth first. Frames: t = a_tangent.xyz, b = a_tangent.w (n x t), n = a_normal.
 
+#include "generated/constants.glsl"
 #include "sh_rotation.glsl"
 
 in vec3 a_position;
@@ -35,12 +36,12 @@ out vec3 v_color;
 vec3 tbl_c[SHR_COUNT];
 
 vec3 table_clamp(vec3 v) {
-    if (v.z >= RIM_Z) {
+    if (v.z >= VIEW_RIM_Z) {
         return v;
     }
     float r = length(v.xy);
     vec2 dir = r > 0.0 ? v.xy / r : vec2(1.0, 0.0);
-    return vec3(dir * sqrt(1.0 - RIM_Z * RIM_Z), RIM_Z);
+    return vec3(dir * sqrt(1.0 - VIEW_RIM_Z * VIEW_RIM_Z), VIEW_RIM_Z);
 }
 
 vec2 table_uv(vec3 v) {

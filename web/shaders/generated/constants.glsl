@@ -11,6 +11,7 @@
 #define LUMA_R 0.2126  // relight.conventions.LUMINANCE_WEIGHTS (Rec. 709)
 #define LUMA_G 0.7152
 #define LUMA_B 0.0722
+#define VIEW_RIM_Z 0.001  // relight.view_maps.RIM_Z (SH-table view maps: z of the rim direction)
 #define CENTER_R 0  // relight.gl.shaders.CENTERS
 #define CENTER_N 1
 #define CENTER_T 2

@@ -12,6 +12,7 @@ export const CONSTANTS = Object.freeze({
   "LUMA_R": 0.2126,
   "LUMA_G": 0.7152,
   "LUMA_B": 0.0722,
+  "VIEW_RIM_Z": 0.001,
   "CENTER_R": 0,
   "CENTER_N": 1,
   "CENTER_T": 2,

@@ -1,0 +1,83 @@
+"""The SH-table shader in a real browser (Debian Chromium, WebGL2 on SwiftShader; tests/web/conftest.py): all three
+modes of ``web/src/sh_table.js`` (the same GLSL as relight/gl/sh_table.py) against the CPU evaluation
+``relight.sh_render.shade`` on the same float16 table.
+
+Tolerance per point (as tests/relight/test_gl_sh_table.py): a bilinear lookup may differ by a fixed-point
+sub-texel weight (2^-9 of the change over its 2 x 2 footprint) times |L_local,i|, plus the float32 rotation error
+(1e-5 per band, the issue's GPU target) times the band norms, plus float32 sums; x 1.5.
+"""
+
+from __future__ import annotations
+
+import base64
+from typing import Any
+
+import numpy as np
+
+from relight.brdf.spec import parse_frame_brdf
+from relight.envmap.exr import to_half_safe
+from relight.indexing import full_block
+from relight.sh_render import shade
+from relight.sh_rotation import local_rotations, rotate_coefficients
+from relight.sh_table import SHTable, build_table
+from relight.tangent_frames import projected_frames
+from relight.view_maps import view_to_texel
+
+MODES = ("general", "fixed-light", "fixed-view")
+ROT_TOL, FILTER_STEP, SLACK = 1e-5, 2.0**-9, 1.5
+
+PROBE_JS = """async (a) => {
+  const { loadSources } = await import('/src/shaders.js');
+  const { SHTableGL, SHADER_FILES } = await import('/src/sh_table.js');
+  const read = await loadSources(SHADER_FILES, '/shaders/');
+  const bytes = Uint8Array.from(atob(a.half), (c) => c.charCodeAt(0));
+  const gl = document.createElement('canvas').getContext('webgl2');
+  const t = new SHTableGL(gl, read, { order: a.order, layout: a.layout, resolution: a.resolution,
+                                       half: new Uint16Array(bytes.buffer) });
+  const out = {};
+  for (const mode of a.modes) {
+    out[mode] = Array.from(t.probe(mode, new Float32Array(a.normals), new Float32Array(a.tangents), a.view,
+                                   new Float32Array(a.light)));
+  }
+  return out;
+}"""
+
+
+def test_sh_table_shader_three_modes_match_cpu(page: Any) -> None:
+    order, layout = 4, "parabolic"
+    table = build_table(parse_frame_brdf("ashikhmin-shirley:nu=24,nv=8,rs=0.05,rd=0"), resolution=32, order=order)
+    half = np.broadcast_to(to_half_safe(table.coefficients)[0], table.coefficients.shape[:3] + (3,))
+    rng = np.random.default_rng(5)
+    normals = rng.normal(size=(400, 3))
+    normals[:2] = [[0, 0, 1], [1e-8, 0, -1]]
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    frames = projected_frames(normals, (0.3, 0.2, 0.9))
+    frames[1::2, 1] *= -1.0  # mirrored frames (glTF w = -1)
+    tangents = np.concatenate([frames[:, 0], np.where(np.linalg.det(frames) < 0, -1.0, 1.0)[:, None]], axis=1)
+    view = np.array([0.25, 0.55, 0.8]) / np.linalg.norm([0.25, 0.55, 0.8])
+    light = rng.normal(size=(25, 3)) * 0.3
+    light[0] += 3.0
+    got = page.evaluate(PROBE_JS, {
+        "order": order, "layout": layout, "resolution": table.resolution, "modes": list(MODES),
+        "half": base64.b64encode(np.ascontiguousarray(np.transpose(half, (2, 0, 1, 3)), "<f2").tobytes()).decode(),
+        "normals": normals.ravel().tolist(), "tangents": tangents.ravel().tolist(), "view": view.tolist(),
+        "light": light.ravel().tolist()})
+
+    same = SHTable(np.asarray(half, np.float64), table.views, table.valid, order, layout, {})
+    cpu = shade(same, light, frames, view, exact_azimuth=False)
+    vl = np.einsum("nij,j->ni", frames, view)
+    local = rotate_coefficients(local_rotations(frames, order), light[None])
+    coef = same.lookup(vl, exact_azimuth=False)
+    x, y = view_to_texel(layout, table.resolution, vl)
+    x0 = np.clip(np.floor(x).astype(int), 0, table.resolution - 2)
+    y0 = np.clip(np.floor(y).astype(int), 0, table.resolution - 2)
+    quad = np.stack([same.coefficients[y0 + i, x0 + j] for i in (0, 1) for j in (0, 1)])
+    band = sum(np.linalg.norm(local[:, full_block(l)], axis=1) * np.linalg.norm(coef[:, full_block(l)], axis=1)
+               for l in range(order + 1))
+    tol = SLACK * (FILTER_STEP * np.einsum("nic,nic->nc", np.abs(local), quad.max(0) - quad.min(0))
+                   + ROT_TOL * band + 1e-6 * np.einsum("nic,nic->nc", np.abs(local), np.abs(coef)))
+    tol = np.where((vl[:, 2] > 0)[:, None], tol, 0.0) + 1e-6
+    assert np.abs(cpu).max() > 0.1 and (vl[:, 2] > 0).sum() > 100
+    for mode in MODES:
+        gpu = np.asarray(got[mode]).reshape(-1, 3)
+        assert np.all(np.abs(gpu - cpu) <= tol), (mode, float(np.abs(gpu - cpu).max()))

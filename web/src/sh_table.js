@@ -1,0 +1,202 @@
+// SH-table shading in WebGL2 (seed 003, Kautz, Sloan & Snyder 2002, §4): the browser twin of
+// relight/gl/sh_table.py, with the same GLSL (web/shaders/sh_table.vert.glsl, sh_rotation.glsl; the rotation of the
+// lighting into each vertex's frame runs on the GPU). Modes: 'general' (view and lighting both change),
+// 'fixed-light' (per-vertex local lighting prepared once per lighting), 'fixed-view' (per-vertex world-frame table
+// coefficients prepared once per view). The per-vertex data is a float32 RGBA texture DATA_WIDTH texels wide,
+// texel p * n + i = coefficient i of vertex p (docs/conventions.md, "SH tables").
+//
+// Raw WebGL2 (no three.js) so that tests/web/test_sh_table_browser.py can probe the shader at given frames and
+// compare with the CPU evaluation (relight.sh_render.shade) on the same float16 table.
+
+import { build } from './shaders.js';
+
+export const MODES = ['general', 'fixed-light', 'fixed-view'];
+const MODE_DEFINE = { general: 'MODE_GENERAL', 'fixed-light': 'MODE_FIXED_LIGHT', 'fixed-view': 'MODE_FIXED_VIEW' };
+/** Width of the probe / per-vertex data targets (relight.gl.sh_table.DATA_WIDTH). */
+export const DATA_WIDTH = 2048;
+export const SHADER_FILES = ['sh_table.vert.glsl', 'sh_table.frag.glsl'];
+
+/** The defines of sh_table.vert.glsl, as relight.gl.sh_table.shader_defines. */
+export function shaderDefines(order, layout, mode, target = null) {
+  if (!(mode in MODE_DEFINE)) {
+    throw new Error(`unknown SH-table mode ${mode}`);
+  }
+  if (layout !== 'parabolic' && layout !== 'hemi-octahedral') {
+    throw new Error(`unknown view-map layout ${layout}`);
+  }
+  const defines = { SH_ORDER: order };
+  defines[layout === 'parabolic' ? 'TABLE_PARABOLIC' : 'TABLE_HEMI_OCTAHEDRAL'] = null;
+  defines[MODE_DEFINE[mode]] = null;
+  defines.OUTPUT_LINEAR = null;
+  if (target) {
+    defines[target] = null;
+  }
+  return defines;
+}
+
+function compile(gl, type, source) {
+  const sh = gl.createShader(type);
+  gl.shaderSource(sh, source);
+  gl.compileShader(sh);
+  if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) {
+    throw new Error(`shader compile: ${gl.getShaderInfoLog(sh)}`);
+  }
+  return sh;
+}
+
+export class SHTableGL {
+  /**
+   * @param {WebGL2RenderingContext} gl
+   * @param {function(string): string} read shader source reader (shaders.loadSources)
+   * @param {{order: number, layout: string, resolution: number, half: Uint16Array}} table float16 bits in
+   *   (coefficient, row, column, RGB) order
+   */
+  constructor(gl, read, { order, layout, resolution, half }) {
+    if (!gl.getExtension('EXT_color_buffer_float')) {
+      throw new Error('EXT_color_buffer_float is required for float targets');
+    }
+    this.gl = gl;
+    this.read = read;
+    this.order = order;
+    this.layout = layout;
+    this.n = (order + 1) * (order + 1);
+    if (half.length !== this.n * resolution * resolution * 3) {
+      throw new Error(`table data holds ${half.length} values, expected ${this.n * resolution * resolution * 3}`);
+    }
+    this.table = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.table);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGB16F, resolution, resolution, this.n, 0, gl.RGB, gl.HALF_FLOAT, half);
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    this.programs = new Map();
+    this.data = null;
+  }
+
+  program(mode, target = null) {
+    const key = `${mode}/${target}`;
+    if (!this.programs.has(key)) {
+      const gl = this.gl;
+      const defines = shaderDefines(this.order, this.layout, mode, target);
+      const prog = gl.createProgram();
+      gl.attachShader(prog, compile(gl, gl.VERTEX_SHADER, build('sh_table.vert.glsl', { defines, read: this.read })));
+      gl.attachShader(prog, compile(gl, gl.FRAGMENT_SHADER,
+        build('sh_table.frag.glsl', { defines: { OUTPUT_LINEAR: null }, read: this.read })));
+      gl.linkProgram(prog);
+      if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) {
+        throw new Error(`shader link: ${gl.getProgramInfoLog(prog)}`);
+      }
+      this.programs.set(key, prog);
+    }
+    return this.programs.get(key);
+  }
+
+  /** Interleaved (position, normal, tangent) float32 vertices -> a vertex array bound to `prog`'s attributes. */
+  vertexArray(prog, vertices) {
+    const gl = this.gl;
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferData(gl.ARRAY_BUFFER, vertices, gl.STATIC_DRAW);
+    let offset = 0;
+    for (const [name, size] of [['a_position', 3], ['a_normal', 3], ['a_tangent', 4]]) {
+      const loc = gl.getAttribLocation(prog, name);
+      if (loc >= 0) {
+        gl.enableVertexAttribArray(loc);
+        gl.vertexAttribPointer(loc, size, gl.FLOAT, false, 40, offset);
+      }
+      offset += 4 * size;
+    }
+    return { vao, buf };
+  }
+
+  setUniforms(prog, view, light) {
+    const gl = this.gl;
+    gl.useProgram(prog);
+    const norm = Math.hypot(...view);
+    gl.uniform3f(gl.getUniformLocation(prog, 'u_view'), view[0] / norm, view[1] / norm, view[2] / norm);
+    const lightLoc = gl.getUniformLocation(prog, 'u_light');
+    if (lightLoc) {
+      gl.uniform3fv(lightLoc, light.subarray(0, this.n * 3));
+    }
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.table);
+    gl.uniform1i(gl.getUniformLocation(prog, 'u_table'), 0);
+    gl.activeTexture(gl.TEXTURE1);
+    gl.bindTexture(gl.TEXTURE_2D, this.data);
+    gl.uniform1i(gl.getUniformLocation(prog, 'u_vertex_data'), 1);
+  }
+
+  /** Draw `count` points x `instances` into a fresh float target; returns [texture, Float32Array RGBA]. */
+  points(prog, vertices, count, instances, keep = false) {
+    const gl = this.gl;
+    const rows = Math.max(1, Math.ceil((count * instances) / DATA_WIDTH));
+    gl.uniform2i(gl.getUniformLocation(prog, 'u_output_size'), DATA_WIDTH, rows);
+    const tex = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE2);  // units 0 and 1 hold the table and the per-vertex data being read
+    gl.bindTexture(gl.TEXTURE_2D, tex);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, DATA_WIDTH, rows, 0, gl.RGBA, gl.FLOAT, null);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    const fbo = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
+    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
+    gl.viewport(0, 0, DATA_WIDTH, rows);
+    gl.disable(gl.DEPTH_TEST);
+    gl.disable(gl.BLEND);
+    gl.clearColor(0, 0, 0, 0);
+    gl.clear(gl.COLOR_BUFFER_BIT);
+    const { vao, buf } = this.vertexArray(prog, vertices);
+    gl.drawArraysInstanced(gl.POINTS, 0, count, instances);
+    const out = new Float32Array(DATA_WIDTH * rows * 4);
+    gl.readPixels(0, 0, DATA_WIDTH, rows, gl.RGBA, gl.FLOAT, out);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.deleteFramebuffer(fbo);
+    gl.deleteVertexArray(vao);
+    gl.deleteBuffer(buf);
+    if (!keep) {
+      gl.deleteTexture(tex);
+      return [null, out];
+    }
+    return [tex, out];
+  }
+
+  /** The fixed modes' per-vertex data (nothing for 'general'). */
+  prepare(mode, vertices, count, view, light) {
+    if (mode === 'general') {
+      return;
+    }
+    const prog = this.program(mode, 'PRECOMPUTE');
+    this.setUniforms(prog, view, light);
+    const [tex] = this.points(prog, vertices, count, this.n, true);
+    if (this.data) {
+      this.gl.deleteTexture(this.data);
+    }
+    this.data = tex;
+  }
+
+  /**
+   * Q (count x 3) at points with normals and glTF tangents (xyz, w), through `mode`'s vertex shader.
+   * @returns {Float32Array}
+   */
+  probe(mode, normals, tangents, view, light) {
+    const count = normals.length / 3;
+    const vertices = new Float32Array(count * 10);
+    for (let k = 0; k < count; k += 1) {
+      vertices.set(normals.subarray(3 * k, 3 * k + 3), 10 * k + 3);
+      vertices.set(tangents.subarray(4 * k, 4 * k + 4), 10 * k + 6);
+    }
+    this.prepare(mode, vertices, count, view, light);
+    const prog = this.program(mode, 'PROBE');
+    this.setUniforms(prog, view, light);
+    const [, raw] = this.points(prog, vertices, count, 1);
+    const out = new Float32Array(count * 3);
+    for (let k = 0; k < count; k += 1) {
+      out.set(raw.subarray(4 * k, 4 * k + 3), 3 * k);
+    }
+    return out;
+  }
+}
