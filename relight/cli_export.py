@@ -5,7 +5,12 @@
         the target engine's prefiltered GGX cube chain (``relight.cube_chain``): one mip per roughness in the
         engine's own lod mapping, RGBA16F, OpenGL face order; FILE.ktx2 carries the per-level table under the
         ``relight.levels`` key and ``FILE.ktx2.json`` beside it holds the same table (roughness, method, orders,
-        predicted error and App. B bound per level, seconds) for tools that do not read KTX2.
+        predicted error and App. B bound per level, seconds) for tools that do not read KTX2, and the map's SH9
+        in every engine convention (``relight.sh9``; also in the KTX2 under ``relight.sh9``).
+
+    relight sh ENVMAP [--convention three|gltf|filament|babylon|raw] [--out FILE.json]
+        the map's order-2 SH lighting (9 RGB coefficients) in that engine's order, sign and scaling
+        (``relight.sh9``, docs/conventions.md "SH9"), as JSON on stdout or in FILE.
 
 ``register(subparsers)`` adds it (``relight.cli.COMMAND_PROVIDERS``). Errors: one line on stderr, exit status 2.
 """
@@ -18,6 +23,10 @@ import os
 import tempfile
 from pathlib import Path
 from typing import Any
+
+#: ``relight.sh9.CONVENTIONS``, repeated so that registering the command imports nothing numerical
+#: (tests/relight/test_cli_export.py checks they agree).
+SH_CONVENTIONS = ("three", "gltf", "filament", "babylon", "raw")
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -40,6 +49,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     from relight.envmap import read_envmap
     from relight.errors import InputError
     from relight.ktx2 import write_ktx2
+    from relight.sh9 import all_conventions
 
     if args.format != "ktx2":
         raise InputError(f"--format {args.format!r} is not written yet; use ktx2")
@@ -55,9 +65,11 @@ def cmd_export(args: argparse.Namespace) -> int:
         "lighting_order": chain.lighting_order, "face_order": ["+X", "-X", "+Y", "-Y", "+Z", "-Z"],
         "source": {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])},
         "levels": table, "seconds": chain.seconds, "relight_version": __version__,
+        "sh9": all_conventions(env.pixels),
     }
     data = write_ktx2([lv.faces for lv in chain.levels], {"levels": table, "target": chain.target,
-                                                          "roughness_mapping": chain.mapping},
+                                                          "roughness_mapping": chain.mapping,
+                                                          "sh9": manifest["sh9"]},
                       writer=f"relight {__version__}")
     _write_atomic(out, data)
     _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
@@ -74,6 +86,25 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sh(args: argparse.Namespace) -> int:
+    from relight.envmap import read_envmap
+    from relight.errors import InputError
+    from relight.sh9 import sh9
+
+    out = Path(args.out) if args.out else None
+    if out is not None and not out.parent.is_dir():
+        raise InputError(f"the folder of --out does not exist: {out.parent}")
+    env = read_envmap(args.envmap)
+    doc = sh9(env.pixels, args.convention)
+    doc["source"] = {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
+    text = json.dumps(doc, indent=2)
+    if out is not None:
+        _write_atomic(out, text.encode("utf-8"))
+    else:
+        print(text)
+    return 0
+
+
 def register(sub: Any) -> None:
     ex = sub.add_parser("export", help="engine-ready prefiltered cube chain (KTX2) of an environment map")
     ex.add_argument("envmap")
@@ -87,3 +118,10 @@ def register(sub: Any) -> None:
     ex.add_argument("--out", required=True)
     ex.add_argument("--json", action="store_true", help="print the manifest as JSON")
     ex.set_defaults(func=cmd_export)
+
+    sp = sub.add_parser("sh", help="order-2 SH lighting (9 RGB coefficients) in an engine's convention")
+    sp.add_argument("envmap")
+    sp.add_argument("--convention", default="three", choices=list(SH_CONVENTIONS),
+                    help="order, sign and scaling of the coefficients (docs/conventions.md, SH9)")
+    sp.add_argument("--out", default=None, help="write the JSON here instead of stdout")
+    sp.set_defaults(func=cmd_sh)
