@@ -5,6 +5,7 @@ import { compare } from './compare.js';
 import { modelsFromOpenapi, specFor } from './materials.js';
 import { loadFile, loadSample } from './objects.js';
 import { exampleScene, parseScene, sceneItems, showScene } from './scene.js';
+import { initShadows } from './shadows.js';
 import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
 
@@ -558,6 +559,7 @@ async function main() {
   } catch (err) {
     showError('envmap-error', err);
   }
+  await initShadows(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
     await loadResult(fromUrl).catch((err) => showError('plan-error', err));

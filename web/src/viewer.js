@@ -22,7 +22,7 @@ import { TONEMAPS } from './tonemap.js';
 export { withShaderAttributes };
 
 const SHADER_FILES = ['fullscreen.vert.glsl', 'object.vert.glsl', 'object.frag.glsl', 'view_map.frag.glsl',
-  'background.frag.glsl'];
+  'background.frag.glsl', 'prt.vert.glsl', 'sh_table.frag.glsl'];
 const HALF_ONE = 0x3c00;
 const ORBIT_MIN_DISTANCE = 2.0; // the unit sphere's proxy box reaches sqrt(3)
 
@@ -77,6 +77,8 @@ export class ShrmViewer {
     this.sceneObjects = [];
     this.sceneTarget = new THREE.Vector3();
     this.sceneHalfAngles = [0, 0]; // largest angles of the scene's objects off the view axis, horizontal, vertical
+    this.environment = null; // {halfRgb, height, width}: the map shown, also projected for PRT lighting
+    this.prt = null; // a PrtObject (prt_object.js) shown instead of the single object, or null
   }
 
   async init() {
@@ -118,6 +120,8 @@ export class ShrmViewer {
       rgba[4 * i + 3] = HALF_ONE;
     }
     const tex = latlongHalfTexture(new THREE.DataTexture(rgba, width, height));
+    this.environment = { halfRgb, height, width };
+    this.prt?.updateLighting();
     this.uniforms.u_environment.value?.dispose();
     this.uniforms.u_environment.value = tex;
     this.background.material = this._material('background', () => this.rawMaterial('fullscreen.vert.glsl',
@@ -127,7 +131,21 @@ export class ShrmViewer {
 
   /** The single object: 'sphere' (exact: ray-sphere intersection inside a proxy box), or a BufferGeometry. */
   setObject(nameOrGeometry, label = 'mesh') {
+    this.setPrt(null);
     this.primary.setGeometry(nameOrGeometry, label);
+  }
+
+  /** Show a PrtObject (a service mesh with diffuse PRT) instead of the single object; null returns to it. */
+  setPrt(prt) {
+    if (this.prt && this.prt !== prt) {
+      this.scene.remove(this.prt.mesh);
+    }
+    this.prt = prt;
+    if (prt) {
+      this.scene.add(prt.mesh);
+      prt.mesh.visible = true;
+    }
+    this.primary.mesh.visible = !prt && !this.sceneObjects.length;
   }
 
   /**
@@ -138,6 +156,9 @@ export class ShrmViewer {
    * view wide enough for all of them. An empty list returns to the single object.
    */
   setSceneObjects(items, { eye = [0, 0, 0] } = {}) {
+    if (items.length) {
+      this.setPrt(null);
+    }
     const made = [];
     try {
       for (const it of items) {
@@ -154,7 +175,7 @@ export class ShrmViewer {
     this.sceneObjects.forEach((o) => o.dispose());
     this.sceneObjects = made;
     made.forEach((o) => this.scene.add(o.mesh));
-    this.primary.mesh.visible = !made.length;
+    this.primary.mesh.visible = !made.length && !this.prt;
     if (!made.length) {
       this.primary.updateMaterial();
       this._frameSingle();
@@ -255,7 +276,7 @@ export class ShrmViewer {
   _updateMaterials() {
     this.primary.updateMaterial();
     this.sceneObjects.forEach((o) => o.updateMaterial());
-    if (this.sceneObjects.length) {
+    if (this.sceneObjects.length || this.prt) {
       this.primary.mesh.visible = false;
     }
   }
@@ -323,6 +344,7 @@ export class ShrmViewer {
     for (const o of this.objects) {
       o.prepare(camera, rot);
     }
+    this.prt?.prepare(this.options.rotation);
   }
 
   /** Eq. 12 into each distant-viewer object's map, when its view (in the environment's frame) or SHRM changed. */
