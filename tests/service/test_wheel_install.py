@@ -169,7 +169,7 @@ def test_shaders_and_meshes_are_the_checkouts(http: httpx.Client) -> None:
         r = http.get(f"/shaders/{rel}")
         assert r.status_code == 200 and r.content == path.read_bytes(), rel
     for name in ("bunny.obj", "teapot.obj"):
-        r = http.get(f"/meshes/{name}")
+        r = http.get(f"/samples/meshes/{name}")
         assert r.status_code == 200 and r.content == (REPO / "data" / "meshes" / name).read_bytes()
 
 

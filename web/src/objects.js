@@ -1,4 +1,4 @@
-// Objects for the viewer: the sample meshes (served at /meshes/) and user files (OBJ, glTF/GLB), loaded in the
+// Objects for the viewer: the sample meshes (served at /samples/meshes/) and user files (OBJ, glTF/GLB), loaded in the
 // browser, merged into one geometry with smooth normals and scaled into the unit ball (like relight/gl/mesh.py).
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
@@ -71,7 +71,7 @@ export async function parseGltf(arrayBuffer) {
 }
 
 /** A sample mesh by name (bunny, teapot). */
-export async function loadSample(name, base = 'meshes/') {
+export async function loadSample(name, base = 'samples/meshes/') {
   const resp = await fetch(`${base}${name}.obj`);
   if (!resp.ok) {
     throw new Error(`mesh ${name}: HTTP ${resp.status}`);
