@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, WithJsonSchema, model_validator
 
 from relight.contract.brdfs import BrdfSpec
+from relight.planning.report import ScenePlan, SceneResult
 from relight.planning.scene import (
     MAX_OBJECT_DISTANCE,
     MAX_OBJECT_SIZE,
@@ -414,8 +415,9 @@ class ScenePublic(Public):
     progress: float = 0.0
     failure_reason: str | None = None
     scene: dict[str, Any]
-    plan: dict[str, Any] | None = Field(None, description="per object: what is simulated, what is skipped and why")
-    result: dict[str, Any] | None = None
+    plan: ScenePlan | None = Field(None, description="per object: what is simulated, what is skipped and why "
+                                                     "(the core's relight.planning.ScenePlan)")
+    result: SceneResult | None = Field(None, description="what the run did (the core's relight.planning.SceneResult)")
     files: dict[str, dict[str, Any]] | None = Field(None, description="name -> sha256, bytes, media_type")
     created_at: datetime
     finished_at: datetime | None = None

@@ -114,13 +114,13 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
         raise InputError(f"--preview must lie in 0..4096, got {args.preview}")
     scene, px = _scene_and_pixels(args.scene)
     plan = plan_scene(scene, px)
-    result = run_plan(plan, args.out, preview_size=args.preview)
+    result = run_plan(plan, args.out, preview_size=args.preview).result
     if args.json:
-        print(json.dumps(result, indent=1))
+        print(json.dumps(result.to_json(), indent=1))
     else:
         print(format_plan(plan))
-        print(f"wrote {len(result['objects'])} object(s) to {args.out} (result.json, plan.json): measured "
-              f"{result['measured_seconds']:.3g} s, predicted {result['predicted_seconds']:.3g} s")
+        print(f"wrote {len(result.objects)} object(s) to {args.out} (result.json, plan.json): measured "
+              f"{result.measured_seconds:.3g} s, predicted {result.predicted_seconds:.3g} s")
     return 0
 
 

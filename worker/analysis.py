@@ -11,6 +11,7 @@ calibration. Plain functions: plain data in, plain data out; they never import F
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from relight.jsonable import jsonable as _jsonable
+from relight.planning.report import ObjectResult
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import JobContext
 from relight.worker.specs import from_core, to_core
@@ -90,25 +92,26 @@ def run_scene(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
     files: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="relight-scene-") as tmp:
         ctx.report("running", 0.6)
-        result = run_plan(plan, tmp, preview_size=int(job.get("preview_size") or 0))
+        result = run_plan(plan, tmp, preview_size=int(job.get("preview_size") or 0)).result
         ctx.report("storing", 0.95)
         for path in sorted(Path(tmp).iterdir()):
             if path.name in ("plan.json", "result.json"):
                 continue
             files[path.name] = {"sha256": store.put_file(path), "bytes": path.stat().st_size,
                                 "media_type": MEDIA_TYPES.get(path.suffix, "application/octet-stream")}
-        for entry in result["objects"]:
-            if entry["files"].get("shrm"):
-                _add_texture(store, Path(tmp) / entry["files"]["shrm"], entry, files)
+        objects = [_add_texture(store, Path(tmp) / entry.files.shrm, entry, files) if entry.files.shrm else entry
+                   for entry in result.objects]
+        result = dataclasses.replace(result, objects=objects)
     out: dict[str, Any] = _jsonable({"plan": from_core(plan.report.to_json(), store),
-                                     "result": from_core(result, store), "files": files})
+                                     "result": from_core(result.to_json(), store), "files": files})
     return out
 
 
-def _add_texture(store: BlobStore, shrm_path: Path, entry: dict[str, Any], files: dict[str, dict[str, Any]]) -> None:
+def _add_texture(store: BlobStore, shrm_path: Path, entry: ObjectResult,
+                 files: dict[str, dict[str, Any]]) -> ObjectResult:
     """The viewer's form of one object's SHRM: ``{name}.coefficients.bin`` (float16 layers, exactly the
     ``coefficients.bin`` of ``/shrms``) and ``{name}.texture.json`` (a result manifest for it, read by
-    ``web/src/layout.js``); both named in the object's ``files`` and in the scene's file list."""
+    ``web/src/layout.js``); both added to the scene's file list, and the object named with them returned."""
     from relight.shrm_io import manifest, read_shrm
     from relight.worker.results import (
         BIN_NAME,
@@ -123,19 +126,19 @@ def _add_texture(store: BlobStore, shrm_path: Path, entry: dict[str, Any], files
 
     shrm = read_shrm(shrm_path)
     layers = shrm_layers(shrm)
-    bin_name, json_name = f"{entry['name']}.coefficients.bin", f"{entry['name']}.texture.json"
+    bin_name, json_name = f"{entry.name}.coefficients.bin", f"{entry.name}.texture.json"
     texture = put_texture(store, layers)
     files[bin_name] = {"sha256": texture["sha256"], "bytes": texture["bytes"],
                        "media_type": "application/octet-stream"}
     described = strip_volatile(manifest(shrm))
-    man = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION, "id": entry["name"],
+    man = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION, "id": entry.name,
            "representation": "shrm", "layout": described["layout"], "height": shrm.height, "width": shrm.width,
            "layers": layer_entries(layers), "components": described["components"],
-           "files": {BIN_NAME: {**texture, "name": bin_name}}, "object": entry["name"]}
+           "files": {BIN_NAME: {**texture, "name": bin_name}}, "object": entry.name}
     data = canonical_json(_jsonable(man))
     files[json_name] = {"sha256": store.put_bytes(data), "bytes": len(data), "media_type": "application/json"}
-    entry["files"]["coefficients_bin"] = bin_name
-    entry["files"]["texture"] = json_name
+    return dataclasses.replace(entry, files=dataclasses.replace(entry.files, coefficients_bin=bin_name,
+                                                                texture=json_name))
 
 
 def calibrate_costmodel() -> dict[str, Any]:

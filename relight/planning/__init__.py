@@ -11,7 +11,8 @@
 * :mod:`~relight.planning.execute` — :func:`run_plan`;
 * :mod:`~relight.planning.job` — :func:`plan_job`, one prefilter job from the stored spectrum of an uploaded map
   (``POST /plan``);
-* :mod:`~relight.planning.report` — the scene plan's typed report.
+* :mod:`~relight.planning.report` — the scene plan's and the run's typed reports (:class:`ScenePlan`,
+  :class:`SceneResult`).
 
 The worker and the server call these; they hold no planning arithmetic of their own.
 """
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
         view_spread,
     )
     from relight.planning.execute import (
+        SceneRun,
         compute_component,
         irradiance_coefficients,
         run_plan,
@@ -42,7 +44,9 @@ if TYPE_CHECKING:
         representation_of,
     )
     from relight.planning.report import (
+        ObjectResult,
         ScenePlan,
+        SceneResult,
     )
     from relight.planning.scene import (
         MAX_OBJECT_DISTANCE,
@@ -82,7 +86,10 @@ _EXPORTS: dict[str, str] = {
     "SHRM_MIN_EPSILON": "scene_plan",
     "Scene": "scene",
     "SceneObject": "scene",
+    "ObjectResult": "report",
     "ScenePlan": "report",
+    "SceneResult": "report",
+    "SceneRun": "execute",
     "StoredLighting": "job",
     "compute_component": "execute",
     "format_plan": "scene_plan",
@@ -114,7 +121,10 @@ __all__ = [
     "SHRM_MIN_EPSILON",
     "Scene",
     "SceneObject",
+    "ObjectResult",
     "ScenePlan",
+    "SceneResult",
+    "SceneRun",
     "StoredLighting",
     "compute_component",
     "format_plan",

@@ -4,8 +4,10 @@ of Lambertian lobes."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -16,10 +18,20 @@ from relight import __version__, indexing
 from relight.brdf.base import RadialLobe
 from relight.errors import InputError
 from relight.jsonable import jsonable
-from relight.planning.report import Computation
+from relight.planning.report import Computation, ObjectFiles, ObjectResult, SceneResult
 from relight.planning.scene_plan import Plan, plan_json
 
 FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SceneRun:
+    """:func:`run_plan`'s answer: the typed result (``result.json``) and, when nothing was written, every object's
+    eq. 12 view map and SHRM by object name."""
+
+    result: SceneResult
+    maps: dict[str, FloatArray] = field(default_factory=dict)
+    shrms: dict[str, Any] = field(default_factory=dict)  # relight.shrm.SHRM
 
 
 def compute_component(plan: Plan, comp: Computation) -> Any:
@@ -61,14 +73,15 @@ def irradiance_coefficients(plan: Plan, comp: Computation) -> list[list[float]]:
 
 def run_plan(
     plan: Plan, out_dir: str | Path | None = None, *, write: bool = True, preview_size: int = 0
-) -> dict[str, Any]:
+) -> SceneRun:
     """Execute a plan: every computation once from the plan's lighting (projected once, while planning), then per
     object its SHRM, the eq. 12 map for its view (global SHRM) and, if asked, a sphere preview (local SHRM, eq. 6,
     for near viewers).
 
-    Returns the result summary (also ``result.json`` next to ``plan.json`` in ``out_dir``): files, orders, measured
-    seconds per stage next to the predicted ones. With ``write=False`` nothing is written and the view maps and
-    SHRMs are returned under ``"maps"`` and ``"shrms"`` (``{object name: ...}``).
+    Returns the typed result (:class:`relight.planning.report.SceneResult`, also ``result.json`` next to
+    ``plan.json`` in ``out_dir``): files, orders, measured seconds per stage next to the predicted ones. With
+    ``write=False`` nothing is written and the view maps and SHRMs are returned too (``SceneRun.maps`` and
+    ``.shrms``, by object name).
     """
     from relight.shrm import SHRM, reflect, render_sphere
 
@@ -92,7 +105,7 @@ def run_plan(
     t = time.perf_counter()
     comps = {c.id: compute_component(plan, c) for c in rep.computations}
     t = lap("synthesis", t)
-    objects: list[dict[str, Any]] = []
+    objects: list[ObjectResult] = []
     maps: dict[str, FloatArray] = {}
     shrms: dict[str, Any] = {}
     for o in rep.objects:
@@ -101,11 +114,11 @@ def run_plan(
             "predicted": o.predicted_error.to_json(), "scene": rep.scene, "object": o.name})
         image = reflect(shrm, o.view)
         t = lap("view", t)
-        entry: dict[str, Any] = {"name": o.name, "viewer": o.viewer, "shrm": o.shrm, "output_rows": o.output_rows,
-                                 "files": {}}
+        entry = ObjectResult(name=o.name, viewer=o.viewer, shrm=o.shrm, output_rows=o.output_rows)
         irr = [c for c in rep.computations if c.id in o.computations and c.representation == "irradiance"]
         if irr:
-            entry["irradiance_real_sh"] = {c.id: irradiance_coefficients(plan, c) for c in irr}
+            entry = dataclasses.replace(entry, irradiance_real_sh={c.id: irradiance_coefficients(plan, c)
+                                                                   for c in irr})
         if write and out is not None:
             from relight.envmap import write_exr, write_png_preview
             from relight.shrm_io import write_shrm
@@ -114,31 +127,26 @@ def run_plan(
             write_shrm(shrm_path, shrm)
             view_path = out / f"{o.name}.view.exr"
             write_exr(view_path, image.astype(np.float32))
-            entry["files"] = {"shrm": shrm_path.name, "manifest": shrm_path.with_suffix(".json").name,
-                              "view_map": view_path.name}
+            files = ObjectFiles(shrm=shrm_path.name, manifest=shrm_path.with_suffix(".json").name,
+                                view_map=view_path.name)
             if preview_size > 0:
                 sphere = render_sphere(shrm, o.view, preview_size, local=o.viewer == "near")
                 png = out / f"{o.name}.sphere.png"
                 write_png_preview(png, sphere)
-                entry["files"]["sphere_png"] = png.name
+                files = dataclasses.replace(files, sphere_png=png.name)
+            entry = dataclasses.replace(entry, files=files)
             t = lap("writing", t)
         else:
             maps[o.name] = image
             shrms[o.name] = shrm
         objects.append(entry)
-    result: dict[str, Any] = {
-        "format": "relight-scene-result", "relight_version": __version__, "scene": rep.scene,
-        "epsilon": rep.epsilon, "objects": objects,
-        "computed": [c.id for c in rep.computations],
-        "lighting_projections": 1,
-        "measured_seconds": float(sum(v for k, v in stages.items() if k != "writing")),
-        "measured_stages": stages,
-        "predicted_seconds": rep.predicted_seconds, "predicted_stages": rep.predicted_stages,
-    }
+    result = SceneResult(
+        relight_version=__version__, scene=rep.scene, epsilon=rep.epsilon, objects=objects,
+        computed=[c.id for c in rep.computations], lighting_projections=1,
+        measured_seconds=float(sum(v for k, v in stages.items() if k != "writing")), measured_stages=stages,
+        predicted_seconds=rep.predicted_seconds, predicted_stages=rep.predicted_stages,
+    )
     if write and out is not None:
         (out / "plan.json").write_text(plan_json(plan))
-        (out / "result.json").write_text(json.dumps(jsonable(result), indent=1, allow_nan=False))
-    else:
-        result["maps"] = maps
-        result["shrms"] = shrms
-    return result
+        (out / "result.json").write_text(json.dumps(jsonable(result.to_json()), indent=1, allow_nan=False))
+    return SceneRun(result, maps, shrms)

@@ -138,3 +138,50 @@ class ScenePlan(Report):
     budget_met: bool | None = field(default=None, metadata=OMIT_NONE)
     budget_ladder: list[BudgetStep] | None = field(default=None, metadata=OMIT_NONE)
     budget_note: str | None = field(default=None, metadata=OMIT_NONE)
+
+
+# ------------------------------------------------------------------------------------------------ a plan's run
+@dataclass(frozen=True, kw_only=True)
+class ObjectFiles(Report):
+    """The files written for one object (names inside the run's folder; the service stores each as a blob): its
+    SHRM (``relight.shrm_io``) and manifest, the eq. 12 map for its view, the optional sphere preview and, in the
+    service, the viewer's float16 texture and its manifest."""
+
+    shrm: str | None = field(default=None, metadata=OMIT_NONE)
+    manifest: str | None = field(default=None, metadata=OMIT_NONE)
+    view_map: str | None = field(default=None, metadata=OMIT_NONE)
+    sphere_png: str | None = field(default=None, metadata=OMIT_NONE)
+    coefficients_bin: str | None = field(default=None, metadata=OMIT_NONE)
+    texture: str | None = field(default=None, metadata=OMIT_NONE)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ObjectResult(Report):
+    """One object of a run: its viewer and SHRM layout (from its :class:`ObjectPlan`), output rows, files and, for
+    Lambertian lobes, the irradiance coefficients (per computation id: 3 colours x (F + 1)^2 real SH)."""
+
+    name: str
+    viewer: str
+    shrm: str
+    output_rows: int
+    files: ObjectFiles = field(default_factory=ObjectFiles)
+    irradiance_real_sh: dict[str, list[list[float]]] | None = field(default=None, metadata=OMIT_NONE)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SceneResult(Report):
+    """What running a plan did (:func:`relight.planning.run_plan`; ``result.json``, the API's
+    ``ScenePublic.result``): the objects, the computations run (each once), and measured seconds per stage next to
+    the predicted ones."""
+
+    format: str = "relight-scene-result"
+    relight_version: str
+    scene: str
+    epsilon: float
+    objects: list[ObjectResult]
+    computed: list[str]
+    lighting_projections: int = 1
+    measured_seconds: float
+    measured_stages: dict[str, float]
+    predicted_seconds: float
+    predicted_stages: dict[str, float]

@@ -117,7 +117,9 @@ def test_lambertian_lobe_is_nine_irradiance_coefficients() -> None:
     assert (c.representation, c.F_B, c.P_B, c.n_coefficients) == ("irradiance", 2, 0, 9)
     assert c.epsilon_rho == pytest.approx(eps_closed[2], rel=1e-6)
     res = planning.run_plan(p, write=False)
-    coeffs = res["objects"][0]["irradiance_real_sh"][c.id]
+    irradiance = res.result.objects[0].irradiance_real_sh
+    assert irradiance is not None
+    coeffs = irradiance[c.id]
     assert np.shape(coeffs) == (3, 9)
     # a stricter tolerance than 1/128 needs F = 4 (odd orders above 1 vanish), and the plan says so
     p = plan([obj("lambert")], epsilon=0.005)
@@ -139,7 +141,7 @@ def test_radially_symmetric_lobe_is_one_map_at_the_minimal_order() -> None:
         skipped = {x.effect: x for x in p.report.objects[0].effects if not x.simulated}
         assert "radially symmetric" in skipped["view dependence: phong (R-centred)"].reason
         # the shared-lighting computation equals prefilter_radial's own pipeline at the same order
-        got = planning.run_plan(p, write=False)["maps"]["o"]
+        got = planning.run_plan(p, write=False).maps["o"]
         ref = prefilter_radial(env(), parse_brdf(f"phong:s={s:g}"), order=c.F_B, size=16).map  # type: ignore[arg-type]
         np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
 
@@ -148,7 +150,7 @@ def test_azimuthally_symmetric_lobe_keeps_q0_terms_only() -> None:
     p = plan([obj("kajiya-kay:s=16", view=[0.2, 0.6, 0.7])])
     (c,) = p.report.computations
     assert c.representation == "shrm_q0" and c.n_maps == c.P_B + 1
-    comp = planning.run_plan(p, write=False)["shrms"]["o"].components[0]
+    comp = planning.run_plan(p, write=False).shrms["o"].components[0]
     assert comp.terms == [(q, 0) for q in range(c.P_B + 1)]
     skipped = [e for e in p.report.objects[0].effects if not e.simulated]
     assert any(e.effect.startswith("azimuthal view dependence (q != 0)") for e in skipped)
@@ -271,7 +273,7 @@ def test_planned_result_within_tolerance_of_the_angular_reference(name: str, eps
     for o in p.scene.objects:
         brdf = parse_brdf(o.material)
         ref = reference_view(env(name), brdf, np.array(o.view), 32, truncation=0.0)
-        err = relative_rms(res["maps"][o.name], ref)
+        err = relative_rms(res.maps[o.name], ref)
         allowance = max(ALLOWANCE[str(lobe.center)] for lobe in brdf_lobes(brdf))
         assert err <= math.sqrt(eps) + allowance, (o.name, o.material, err)
 

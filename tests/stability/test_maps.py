@@ -126,8 +126,8 @@ def test_all_zero_maps_give_zero_and_finite_reports(tmp_path: Path) -> None:
                                      "objects": [{"size": 1, "distance": 5, "material": material}]})
     plan = planning.plan_scene(scene, px, calibration=costmodel.default_calibration())
     planning.plan_json(plan)  # strict JSON
-    result = planning.run_plan(plan, tmp_path)
-    strict_json(result)
+    result = planning.run_plan(plan, tmp_path).result
+    strict_json(result.to_json())
     assert not read_envmap(tmp_path / "object0.view.exr").pixels.any()
 
 
