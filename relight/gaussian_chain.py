@@ -108,8 +108,10 @@ def build_chain(
     sigma_max: float = DEFAULT_SIGMA_MAX,
     epsilon: float = DEFAULT_EPSILON,
     size_cap: int | None = None,
+    uniform_size: bool = False,
 ) -> GaussianChain:
-    """The Gaussian chain of a lat-long map (H, W, 3) (module docstring): one projection, one synthesis per level."""
+    """The Gaussian chain of a lat-long map (H, W, 3) (module docstring): one projection, one synthesis per level;
+    ``uniform_size`` synthesises every level at the largest size (a GPU texture array, ``relight.gl.gaussian``)."""
     if not 0.0 < epsilon < 1.0:
         raise InputError(f"chain: epsilon must lie in (0, 1), got {epsilon!r}")
     px = require_rgb_latlong(pixels)
@@ -136,7 +138,7 @@ def build_chain(
         f_b = choice.F_B
         l_idx, _ = indexing.healpy_lm(f_b)
         b_lm = sh.truncate(lighting.alm, lighting.lmax, f_b) * transfer[: f_b + 1, 0][l_idx][None, :]
-        s = max(min(size_for_order(f_b), cap), min(MIN_SIZE, cap))
+        s = cap if uniform_size else max(min(size_for_order(f_b), cap), min(MIN_SIZE, cap))
         s -= s % 2 if s > 2 else 0
         ts = time.perf_counter()
         m = sh.synthesize(b_lm, f_b, s, 2 * s).astype(np.float32)

@@ -127,6 +127,11 @@ def shader_fixture() -> dict[str, Any]:
         d = {**defs, **extra} if name != "background.frag.glsl" and name != "object.vert.glsl" else extra
         builds.append({"name": name, "defines": [[k, v] for k, v in d.items()],  # ordered (JSON sorts keys)
                        "text": shaders.build(name, target="300 es", defines=d)})
+    gaussian = {"GAUSSIAN_K": 3, "GAUSSIAN_N": 15, "GAUSSIAN_LEVELS": 12, "GAUSSIAN_VISIBILITY": None, "VIS_MODE": 3,
+                "SH_ORDER": 3, "OUTPUT_LINEAR": None}
+    for name in ("gaussian.frag.glsl", "gaussian.vert.glsl"):
+        builds.append({"name": name, "defines": [[k, v] for k, v in gaussian.items()],
+                       "text": shaders.build(name, target="300 es", defines=gaussian)})
     files = {}
     for path in sorted(shaders.SHADER_DIR.rglob("*.glsl")):
         rel = path.relative_to(shaders.SHADER_DIR).as_posix()

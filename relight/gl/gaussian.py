@@ -1,0 +1,207 @@
+"""Gaussian-lobe shading on the GPU (moderngl, EGL; Mesa llvmpipe works): seed 002's §5 renderer.
+
+The GLSL is ``web/shaders/gaussian.glsl`` (with ``gaussian.vert.glsl`` / ``gaussian.frag.glsl``), the same text the
+viewer uses; it evaluates eq. 5, or eq. 7 with per-vertex SH visibility, exactly as the CPU does
+(``relight.sg_render``, ``relight.sg_shadow``). The data are float16 as stored: :func:`half_material` and
+:func:`half_chain` round a material and a chain the way the textures hold them, so the CPU evaluation of the
+rounded data is the GPU's reference (``tests/relight/test_gl_gaussian.py``).
+
+Textures (the paper's Fig. 3): ``u_lobe_shape`` K x N RGBA16F (mu, sigma), ``u_lobe_weight`` K x N RGBA16F (w),
+``u_chain`` an RGBA16F 2-D array of the chain's levels, which must share one size (``build_chain(...,
+uniform_size=True)``). Objects: the unit sphere (orthographic, ``relight.shrm.sphere_geometry``'s frame) or a
+``TriangleMesh`` in the unit ball (indexed, canonical vertex order, with its per-vertex visibility), with
+``relight.mesh_render``'s orthographic camera. ``plain=True`` draws the baseline instead: the chain's sharpest
+level looked up at R, one texture lookup per pixel (the per-frame cost reference of ``bench/gaussian_frame.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from relight.brdf.gaussian_lobes import GaussianLobes
+from relight.errors import InputError
+from relight.gaussian_chain import ChainLevel, GaussianChain
+from relight.gl import shaders
+from relight.gl.render import camera_basis, create_context, view_projection
+from relight.mesh.model import TriangleMesh
+
+#: Visibility modes as the shader's VIS_MODE (relight.sg_shadow.MODES; "none" compiles no visibility).
+VIS_MODES: Final = {"ao": 1, "sh": 2, "sh-lobe": 3}
+#: Coefficients per vertex in the attributes (order 3, the paper's 16).
+VIS_COEFFICIENTS: Final = 16
+_FULLSCREEN: Final = np.array([-1.0, -1.0, 0.0, 3.0, -1.0, 0.0, -1.0, 3.0, 0.0], dtype="<f4")
+
+
+def _half(a: NDArray[np.floating]) -> NDArray[np.float64]:
+    return np.asarray(np.asarray(a, dtype=np.float64).astype(np.float16), dtype=np.float64)
+
+
+def half_material(material: GaussianLobes) -> GaussianLobes:
+    """The material as its textures hold it: mu, sigma and w rounded to float16, elevations to float32."""
+    e = np.asarray(material.elevations.astype(np.float32), dtype=np.float64)
+    return GaussianLobes(e, _half(material.mu), _half(material.sigma), _half(material.weight))
+
+
+def half_chain(chain: GaussianChain) -> GaussianChain:
+    """The chain as its texture holds it: every level rounded to float16 (sigmas as float32 uniforms)."""
+    levels = [ChainLevel(sigma=float(np.float32(lv.sigma)), map=_half(lv.map).astype(np.float32), orders=lv.orders)
+              for lv in chain.levels]
+    return GaussianChain(sigma0=levels[0].sigma, ratio=chain.ratio, levels=levels, report=chain.report)
+
+
+class GaussianRenderer:
+    """One material and one chain on one GL context; :meth:`render` draws the sphere or a mesh from any view."""
+
+    def __init__(self, material: GaussianLobes, chain: GaussianChain, *, ctx: Any = None) -> None:
+        import moderngl
+
+        sizes = {lv.map.shape for lv in chain.levels}
+        if len(sizes) != 1:
+            raise InputError(f"the GL chain needs levels of one size (build_chain(..., uniform_size=True)), got "
+                             f"{sorted(sizes)}")
+        self.material, self.chain = material, chain
+        self.ctx = ctx if ctx is not None else create_context()
+        k, n = material.n_lobes, material.elevations.size
+        shape = np.zeros((n, k, 4), dtype=np.float16)
+        shape[..., 0], shape[..., 1] = material.mu, material.sigma
+        weight = np.zeros((n, k, 4), dtype=np.float16)
+        weight[..., :3] = material.weight
+        self.lobe_shape = self.ctx.texture((k, n), 4, np.ascontiguousarray(shape).tobytes(), dtype="f2")
+        self.lobe_weight = self.ctx.texture((k, n), 4, np.ascontiguousarray(weight).tobytes(), dtype="f2")
+        for tex in (self.lobe_shape, self.lobe_weight):
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        h, w = next(iter(sizes))[:2]
+        levels = np.zeros((len(chain.levels), h, w, 4), dtype=np.float16)
+        for j, lv in enumerate(chain.levels):
+            from relight.envmap.exr import to_half_safe
+
+            levels[j, ..., :3] = to_half_safe(np.asarray(lv.map))[0]
+        self.chain_tex = self.ctx.texture_array((w, h, len(chain.levels)), 4, levels.tobytes(), dtype="f2")
+        self.chain_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.chain_tex.repeat_x = True
+        self.chain_tex.repeat_y = False
+        self._programs: dict[tuple[str, str, int, bool], Any] = {}
+        self._quad = self.ctx.buffer(_FULLSCREEN.tobytes())
+
+    def release(self) -> None:
+        for obj in (self.lobe_shape, self.lobe_weight, self.chain_tex, self._quad):
+            obj.release()
+
+    def defines(self, obj: str, mode: str = "none", order: int = 3, plain: bool = False) -> dict[str, object]:
+        """The shader's defines (also what the viewer passes)."""
+        out: dict[str, object] = {"GAUSSIAN_K": self.material.n_lobes, "GAUSSIAN_N": int(self.material.elevations.size),
+                                  "GAUSSIAN_LEVELS": len(self.chain.levels), "OUTPUT_LINEAR": None}
+        if obj == "sphere":
+            out["GAUSSIAN_SPHERE"] = None
+        if plain:
+            out["GAUSSIAN_PLAIN"] = None
+        if mode != "none":
+            if mode not in VIS_MODES:
+                raise InputError(f"unknown visibility mode {mode!r}; expected none or one of {', '.join(VIS_MODES)}")
+            if not 0 <= order <= 3:
+                raise InputError(f"GL visibility order must lie in 0..3 (16 coefficients), got {order}")
+            out.update(GAUSSIAN_VISIBILITY=None, VIS_MODE=VIS_MODES[mode], SH_ORDER=int(order))
+        return out
+
+    def _program(self, obj: str, mode: str, order: int, plain: bool) -> Any:
+        key = (obj, mode, order, plain)
+        if key not in self._programs:
+            d = self.defines(obj, mode, order, plain)
+            self._programs[key] = self.ctx.program(vertex_shader=shaders.build("gaussian.vert.glsl", defines=d),
+                                                   fragment_shader=shaders.build("gaussian.frag.glsl", defines=d))
+        return self._programs[key]
+
+    def mesh_buffers(self, mesh: TriangleMesh, visibility: NDArray[np.floating] | None = None) -> tuple[Any, Any]:
+        """Vertex buffer (position, normal, 16 visibility floats; zeros where missing) and index buffer."""
+        nv = mesh.n_vertices
+        data = np.zeros((nv, 6 + VIS_COEFFICIENTS), dtype="<f4")
+        data[:, :3], data[:, 3:6] = mesh.positions, mesh.normals
+        if visibility is not None:
+            vis = np.asarray(visibility, dtype=np.float64)
+            if vis.ndim != 2 or vis.shape[0] != nv:
+                raise InputError(f"visibility must be ({nv}, (F+1)^2), got {vis.shape}")
+            m = min(vis.shape[1], VIS_COEFFICIENTS)
+            data[:, 6 : 6 + m] = vis[:, :m]
+        return (self.ctx.buffer(np.ascontiguousarray(data).tobytes()),
+                self.ctx.buffer(np.ascontiguousarray(mesh.faces, dtype="<u4").tobytes()))
+
+    def render(self, view: Sequence[float] | NDArray[np.floating], size: int, *,
+               mesh: tuple[Any, Any] | None = None, mode: str = "none", order: int = 3, plain: bool = False,
+               frames: int = 1) -> NDArray[np.float32]:
+        """A (size, size, 3) float32 image (row 0 at the top; 0 off the object) of the sphere, or of the mesh whose
+        :meth:`mesh_buffers` are given, seen along -view; ``frames`` > 1 draws it that many times (timing)."""
+        import moderngl
+
+        v = np.asarray(view, dtype=np.float64)
+        if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0.0:
+            raise InputError(f"view must be a non-zero 3-vector, got {np.asarray(view).tolist()}")
+        v = v / np.linalg.norm(v)
+        if not 1 <= size <= 4096:
+            raise InputError(f"size must be in 1..4096, got {size}")
+        obj = "sphere" if mesh is None else "mesh"
+        if obj == "sphere" and mode != "none":
+            raise InputError("visibility needs a mesh (the sphere does not shadow itself)")
+        prog = self._program(obj, mode, order, plain)
+        right, up = camera_basis(v)
+        values: dict[str, Any] = {
+            "u_lobe_shape": 0, "u_lobe_weight": 1, "u_chain": 2,
+            "u_elevations": [float(x) for x in self.material.elevations],
+            "u_chain_sigma0": float(self.chain.levels[0].sigma),
+            "u_chain_log_ratio": math.log(self.chain.levels[1].sigma / self.chain.levels[0].sigma)
+            if len(self.chain.levels) > 1 else 1.0,
+            "u_view_direction": tuple(float(x) for x in v), "u_viewport": (float(size), float(size)),
+            "u_right": tuple(float(x) for x in right), "u_up": tuple(float(x) for x in up),
+            "u_view_projection": tuple(view_projection(v, "orthographic", 3.0).T.ravel()),
+        }
+        for name, value in values.items():
+            _set(prog, name, value)
+        if mesh is None:
+            vao = self.ctx.vertex_array(prog, [(self._quad, "3f", "a_position")])
+        else:
+            vbo, ibo = mesh
+            names, parts = [], []
+            for name, width in [("a_position", 3), ("a_normal", 3)] + [(f"a_visibility{i}", 4) for i in range(4)]:
+                if prog.get(name, None) is None:  # not compiled in, or optimised away (AO reads only the DC term)
+                    parts.append(f"{4 * width}x")
+                else:
+                    names.append(name)
+                    parts.append(f"{width}f")
+            fmt = " ".join(parts)
+            vao = self.ctx.vertex_array(prog, [(vbo, fmt, *names)], index_buffer=ibo, index_element_size=4)
+        self.lobe_shape.use(location=0)
+        self.lobe_weight.use(location=1)
+        self.chain_tex.use(location=2)
+        color = self.ctx.texture((size, size), 4, dtype="f4")
+        depth = self.ctx.depth_renderbuffer((size, size))
+        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
+        try:
+            fbo.use()
+            fbo.viewport = (0, 0, size, size)
+            for _ in range(max(1, frames)):
+                fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+                self.ctx.enable(moderngl.DEPTH_TEST)
+                self.ctx.disable(moderngl.CULL_FACE)
+                vao.render(moderngl.TRIANGLES, vertices=3 if mesh is None else -1)
+            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+        finally:
+            fbo.release()
+            color.release()
+            depth.release()
+            vao.release()
+        return np.ascontiguousarray(raw[::-1, :, :3])
+
+
+def _set(prog: Any, name: str, value: Any) -> None:
+    """Set a uniform if the linker kept it (unused uniforms are optimised away)."""
+    try:
+        member = prog[name]
+    except KeyError:
+        return
+    if isinstance(value, list) and getattr(member, "array_length", 0) == 1:
+        value = value[0]
+    member.value = value

@@ -1,0 +1,135 @@
+// Gaussian lobes with a Gaussian-prefiltered chain (Green, Kautz & Durand 2007, §5, eqs. 5 and 7): the GPU twin
+// of relight.sg_render.lobe_terms and relight.sg_shadow.lobe_visibility (docs/conventions.md, "Gaussian lobes").
+//
+// Defines: GAUSSIAN_K (lobes), GAUSSIAN_N (elevations), GAUSSIAN_LEVELS (chain levels); with GAUSSIAN_VISIBILITY
+// also VIS_MODE (VIS_AO, VIS_SH or VIS_SH_LOBE below) and SH_ORDER <= 3 (sh.glsl, included before this file).
+// Data, all float16 as stored (the paper's Fig. 3 layout):
+//   u_lobe_shape   K x N texels (x = lobe, y = elevation), R = mu, G = sigma (radians);
+//   u_lobe_weight  K x N texels, RGB = w (the lobe's integral);
+//   u_elevations   the N elevations theta_o (radians, increasing);
+//   u_chain        the levels G_{sigma_j} * L as one 2-D array (every level the same S x 2S lat-long size),
+//                  LINEAR, REPEAT in u, CLAMP_TO_EDGE in v: relight.conventions.sample_latlong.
+// The texels are fetched exactly (texelFetch) and interpolated linearly in theta_o here, clamped at the end
+// elevations (GaussianLobes.params_at); a lobe's level is x = log(sigma / sigma_0) / log(ratio), clamped to the
+// chain, blended linearly between floor(x) and floor(x) + 1 (relight.gaussian_chain.sample_chain).
+
+#define VIS_AO 1
+#define VIS_SH 2
+#define VIS_SH_LOBE 3
+
+uniform highp sampler2D u_lobe_shape;
+uniform highp sampler2D u_lobe_weight;
+uniform float u_elevations[GAUSSIAN_N];
+uniform highp sampler2DArray u_chain;
+uniform float u_chain_sigma0;
+uniform float u_chain_log_ratio;
+
+// The interval j (u_elevations[j] <= theta < u_elevations[j + 1]) and the fraction f within it.
+void gaussian_interval(float theta, out int j, out float f) {
+    j = 0;
+    f = 0.0;
+#if GAUSSIAN_N > 1
+    float t = clamp(theta, u_elevations[0], u_elevations[GAUSSIAN_N - 1]);
+    for (int i = 1; i < GAUSSIAN_N - 1; ++i) {
+        if (t >= u_elevations[i]) {
+            j = i;
+        }
+    }
+    f = (t - u_elevations[j]) / (u_elevations[j + 1] - u_elevations[j]);
+#endif
+}
+
+// c = cos(mu) r + sin(mu) e, e = normalize(n - (n.r) r): r rotated by mu toward n in the plane of incidence; any
+// perpendicular where r = n (mu = 0 there) (relight.brdf.gaussian_lobes.lobe_centres).
+vec3 gaussian_centre(vec3 n, vec3 r, float mu) {
+    vec3 e = n - dot(n, r) * r;
+    float len = length(e);
+    if (len > 1e-6) {
+        e /= len;
+    } else {
+        e = normalize(cross(r, abs(r.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
+    }
+    return cos(mu) * r + sin(mu) * e;
+}
+
+// (G_sigma * L)(d) from the chain.
+vec3 gaussian_chain_lookup(vec3 d, float sigma) {
+    float x = 0.0;
+#if GAUSSIAN_LEVELS > 1
+    x = clamp(log(max(sigma, 1e-30) / u_chain_sigma0) / u_chain_log_ratio, 0.0, float(GAUSSIAN_LEVELS - 1));
+#endif
+    float j0 = floor(x);
+    float f = x - j0;
+    vec2 uv = latlong_uv(d);
+    vec3 a = texture(u_chain, vec3(uv, j0)).rgb;
+    if (f > 0.0) {
+        a = mix(a, texture(u_chain, vec3(uv, min(j0 + 1.0, float(GAUSSIAN_LEVELS - 1)))).rgb, f);
+    }
+    return a;
+}
+
+#ifdef GAUSSIAN_VISIBILITY
+// The visibility weight of a lobe at centre c and width sigma from the point's SH visibility (16 coefficients,
+// the first (SH_ORDER + 1)^2 used), clamped to [0, 1] (relight.sg_shadow.lobe_visibility).
+float gaussian_visibility(vec3 c, float sigma, float vis[16]) {
+#if VIS_MODE == VIS_AO
+    return clamp(2.0 * SH_Y00 * vis[0], 0.0, 1.0);
+#else
+    float y[SH_COUNT];
+    sh_real(sh_frame(c), y);
+    float band[4] = float[4](1.0, 1.0, 1.0, 1.0);
+#if VIS_MODE == VIS_SH_LOBE
+    // a_l = I_{l+1/2}(kappa) / I_{1/2}(kappa): a_0 = 1, a_1 = coth(kappa) - 1 / kappa, a_{l+1} = a_{l-1} - (2l + 1)
+    // / kappa a_l (stable for l <= 3 in float32 over the fit's sigma range); exp(-l (l + 1) / (2 kappa)) for
+    // sharp lobes (within 1e-6 there)
+    float kappa = 1.0 / (sigma * sigma);
+    if (kappa > 1e4) {
+        for (int l = 1; l < 4; ++l) {
+            band[l] = exp(-float(l * (l + 1)) / (2.0 * kappa));
+        }
+    } else {
+        band[1] = 1.0 / tanh(kappa) - 1.0 / kappa;
+        band[2] = band[0] - 3.0 / kappa * band[1];
+        band[3] = band[1] - 5.0 / kappa * band[2];
+    }
+#endif
+    float acc = 0.0;
+    for (int l = 0; l <= SH_ORDER; ++l) {
+        for (int i = l * l; i < (l + 1) * (l + 1); ++i) {
+            acc += band[l] * y[i] * vis[i];
+        }
+    }
+    return clamp(acc, 0.0, 1.0);
+#endif
+}
+#endif
+
+// Outgoing radiance toward the unit view v at the unit normal n: eq. 5, or eq. 7 with the point's visibility.
+#ifdef GAUSSIAN_VISIBILITY
+vec3 gaussian_shade(vec3 n, vec3 v, float vis[16]) {
+#else
+vec3 gaussian_shade(vec3 n, vec3 v) {
+#endif
+    float ndv = clamp(dot(n, v), 0.0, 1.0);
+    vec3 r = 2.0 * ndv * n - v;
+    r /= max(length(r), 1e-30);
+    int j;
+    float f;
+    gaussian_interval(acos(ndv), j, f);
+    int j1 = min(j + 1, GAUSSIAN_N - 1);
+    vec3 sum = vec3(0.0);
+    for (int k = 0; k < GAUSSIAN_K; ++k) {
+        vec3 w = mix(texelFetch(u_lobe_weight, ivec2(k, j), 0).rgb, texelFetch(u_lobe_weight, ivec2(k, j1), 0).rgb, f);
+        if (max(w.r, max(w.g, w.b)) <= 0.0) {
+            continue;
+        }
+        vec2 shape = mix(texelFetch(u_lobe_shape, ivec2(k, j), 0).rg, texelFetch(u_lobe_shape, ivec2(k, j1), 0).rg, f);
+        vec3 c = gaussian_centre(n, r, shape.x);
+        vec3 term = w * gaussian_chain_lookup(c, shape.y);
+#ifdef GAUSSIAN_VISIBILITY
+        term *= gaussian_visibility(c, shape.y, vis);
+#endif
+        sum += term;
+    }
+    return sum;
+}
