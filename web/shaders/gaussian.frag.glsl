@@ -6,9 +6,6 @@
 
 #include "generated/constants.glsl"
 #include "common.glsl"
-#ifdef GAUSSIAN_VISIBILITY
-#include "sh.glsl"
-#endif
 #include "gaussian.glsl"
 #ifndef OUTPUT_LINEAR
 #include "tonemap.glsl"

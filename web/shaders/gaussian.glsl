@@ -2,7 +2,7 @@
 // of relight.sg_render.lobe_terms and relight.sg_shadow.lobe_visibility (docs/conventions.md, "Gaussian lobes").
 //
 // Defines: GAUSSIAN_K (lobes), GAUSSIAN_N (elevations), GAUSSIAN_LEVELS (chain levels); with GAUSSIAN_VISIBILITY
-// also VIS_MODE (VIS_AO, VIS_SH or VIS_SH_LOBE below) and SH_ORDER <= 3 (sh.glsl, included before this file).
+// also VIS_MODE (VIS_AO, VIS_SH or VIS_SH_LOBE below) and SH_ORDER <= 3 (the visibility's order).
 // Data, all float16 as stored (the paper's Fig. 3 layout):
 //   u_lobe_shape   K x N texels (x = lobe, y = elevation), R = mu, G = sigma (radians);
 //   u_lobe_weight  K x N texels, RGB = w (the lobe's integral);
@@ -69,14 +69,41 @@ vec3 gaussian_chain_lookup(vec3 d, float sigma) {
 }
 
 #ifdef GAUSSIAN_VISIBILITY
+// The 16 real harmonics of order <= 3 (sh.glsl's basis: relight.shrm.real_harmonics, index l^2 + l + m) of a unit
+// vector d = (x, y, z) in the SH frame, as polynomials: the paper's per-lobe "directly evaluating the 4-th order
+// SH" without sh.glsl's general recursion (its square roots per step cost more than the whole lookup). Factors:
+// sqrt(1/4pi), sqrt(3/4pi), sqrt(15/4pi), sqrt(5/16pi), sqrt(15/16pi), sqrt(35/32pi), sqrt(105/4pi),
+// sqrt(21/32pi), sqrt(7/16pi), sqrt(105/16pi); checked against the CPU basis by tests/relight/test_gl_gaussian.py.
+void gaussian_sh16(vec3 d, out float y[16]) {
+    float x = d.x;
+    float yy = d.y;
+    float z = d.z;
+    y[0] = 0.28209479177387814;
+    y[1] = 0.4886025119029199 * yy;
+    y[2] = 0.4886025119029199 * z;
+    y[3] = 0.4886025119029199 * x;
+    y[4] = 1.0925484305920792 * x * yy;
+    y[5] = 1.0925484305920792 * yy * z;
+    y[6] = 0.31539156525252005 * (3.0 * z * z - 1.0);
+    y[7] = 1.0925484305920792 * x * z;
+    y[8] = 0.5462742152960396 * (x * x - yy * yy);
+    y[9] = 0.5900435899266435 * yy * (3.0 * x * x - yy * yy);
+    y[10] = 2.890611442640554 * x * yy * z;
+    y[11] = 0.4570457994644658 * yy * (5.0 * z * z - 1.0);
+    y[12] = 0.3731763325901154 * z * (5.0 * z * z - 3.0);
+    y[13] = 0.4570457994644658 * x * (5.0 * z * z - 1.0);
+    y[14] = 1.445305721320277 * z * (x * x - yy * yy);
+    y[15] = 0.5900435899266435 * x * (x * x - 3.0 * yy * yy);
+}
+
 // The visibility weight of a lobe at centre c and width sigma from the point's SH visibility (16 coefficients,
 // the first (SH_ORDER + 1)^2 used), clamped to [0, 1] (relight.sg_shadow.lobe_visibility).
 float gaussian_visibility(vec3 c, float sigma, float vis[16]) {
 #if VIS_MODE == VIS_AO
     return clamp(2.0 * SH_Y00 * vis[0], 0.0, 1.0);
 #else
-    float y[SH_COUNT];
-    sh_real(sh_frame(c), y);
+    float y[16];
+    gaussian_sh16(sh_frame(c), y);
     float band[4] = float[4](1.0, 1.0, 1.0, 1.0);
 #if VIS_MODE == VIS_SH_LOBE
     // a_l = I_{l+1/2}(kappa) / I_{1/2}(kappa): a_0 = 1, a_1 = coth(kappa) - 1 / kappa, a_{l+1} = a_{l-1} - (2l + 1)
