@@ -11,7 +11,10 @@ the projected brushing direction (Kautz §6), Ashikhmin–Shirley (48, 16) table
 array), random RGB lighting; each mode draws ``--frames`` frames (the view turning 1 degree per frame; general:
 lighting uniforms re-sent too) into a ``--size`` squared float target, then one read-back; the first frame of each
 mode (shader compilation) is not timed. Also reported: the fixed modes' per-vertex preparation (one GPU pass each
-time the lighting or the view changes).
+time the lighting or the view changes), and the paper's "transfer" column (PRT, §5: a folded 25 x 25 transfer
+matrix per vertex, float16; timed with T_p = I, i.e. T'_p = S M(R_p) from ``relight.sh_prt.folded_transfer`` — the
+cost does not depend on the values — whose image must equal the general mode's: its largest difference is
+printed as a check).
 
 Prints a markdown table and JSON (``--json PATH``). ``--quick``: the 1,839-vertex bunny, 64 x 64 table.
 """
@@ -30,6 +33,7 @@ import numpy as np
 from relight.brdf.spec import parse_frame_brdf
 from relight.gl.sh_table import MODES, TableRenderer
 from relight.mesh.load import sample_mesh
+from relight.sh_prt import folded_transfer
 from relight.sh_table import build_table
 from relight.tangent_frames import projected_frames
 
@@ -64,16 +68,28 @@ def main() -> None:
         r.draw(mode, geo, view, light, args.size, frames=args.frames)
         per = (time.perf_counter() - t0) / args.frames
         out[mode] = {"frame_ms": 1e3 * per, "fps": 1.0 / per, "prepare_s": prep}
+    t0 = time.perf_counter()
+    eye = np.broadcast_to(np.eye(25), (mesh.n_vertices, 25, 25))
+    r.set_transfer(folded_transfer(frames, eye, 4))
+    prep = time.perf_counter() - t0
+    ref = r.draw("general", geo, view, light, args.size)
+    img = r.draw("transfer", geo, view, light, args.size)
+    t0 = time.perf_counter()
+    r.draw("transfer", geo, view, light, args.size, frames=args.frames)
+    per = (time.perf_counter() - t0) / args.frames
+    out["transfer"] = {"frame_ms": 1e3 * per, "fps": 1.0 / per, "prepare_s": prep,
+                       "max_diff_vs_general": float(np.abs(img - ref).max() / np.abs(ref).max())}
     base = out["general"]["frame_ms"]
-    for mode in MODES:
+    for mode in (*MODES, "transfer"):
         out[mode]["speed_vs_general"] = base / out[mode]["frame_ms"]
     out["general_over_fixed_view"] = base / out["fixed-view"]["frame_ms"]
     print(f"{name}: {mesh.n_vertices} vertices, {mesh.n_faces} faces, {args.size}^2 pixels, {out['renderer']}")
     print("| mode | frame (ms) | fps | x general | prepare (s) |\n|---|---|---|---|---|")
-    for mode in MODES:
+    for mode in (*MODES, "transfer"):
         o = out[mode]
         print(f"| {mode} | {o['frame_ms']:.1f} | {o['fps']:.2f} | {o['speed_vs_general']:.2f} | {o['prepare_s']:.2f} |")
     print(f"general / fixed-view = {out['general_over_fixed_view']:.2f} (issue target <= 3; paper 21-31)")
+    print(f"transfer (T = I) vs general image: {out['transfer']['max_diff_vs_general']:.1e} of the largest value")
     print(json.dumps(out, sort_keys=True))
     if args.json:
         args.json.write_text(json.dumps(out, indent=2, sort_keys=True))

@@ -12,6 +12,9 @@ docs/conventions.md), run per vertex in ``web/shaders/sh_table.vert.glsl``, the 
   texture, texel ``p * n + i``), per frame steps 2-4.
 * ``fixed-view``: the table at ``v_p`` turned to the world frame, ``(S M)^T c(v_p)``, computed once per view (zero
   where the vertex faces away); per frame one n-term dot product with the world lighting.
+* ``transfer`` (PRT, §5): per vertex the folded transfer matrix ``T'_p = S M(R_p) T_p`` (``relight.sh_prt``) as
+  RGBA16F rows (:meth:`TableRenderer.set_transfer`); per frame ``L_p = T'_p L'`` then steps 3-4. View and lighting
+  both free; shadows from ``T_p``.
 
 The table is a texture array of n RGB16F layers (the ``.exr`` / viewer data: float16, grey tables repeated in R, G,
 B), bilinear and clamped to the edge, exactly ``SHTable.lookup(exact_azimuth=False)`` on the CPU. Shading is per
@@ -32,17 +35,19 @@ from relight.gl import shaders
 from relight.gl.render import ORTHO_DISTANCE, create_context, view_projection
 from relight.view_maps import check_layout
 
-Mode = Literal["general", "fixed-light", "fixed-view"]
+Mode = Literal["general", "fixed-light", "fixed-view", "transfer"]
+#: The paper's three rendering modes (§4); ``transfer`` is PRT (§5, :meth:`TableRenderer.set_transfer`).
 MODES: Final[tuple[Mode, ...]] = ("general", "fixed-light", "fixed-view")
-_MODE_DEFINE: Final = {"general": "MODE_GENERAL", "fixed-light": "MODE_FIXED_LIGHT", "fixed-view": "MODE_FIXED_VIEW"}
+_MODE_DEFINE: Final = {"general": "MODE_GENERAL", "fixed-light": "MODE_FIXED_LIGHT", "fixed-view": "MODE_FIXED_VIEW",
+                       "transfer": "MODE_TRANSFER"}
 #: Width of the float targets of probes and per-vertex data (texels); rows as needed.
 DATA_WIDTH: Final = 2048
 
 
 def shader_defines(order: int, layout: str, mode: Mode, target: str | None = None) -> dict[str, object]:
     """The defines of ``sh_table.vert.glsl`` (also what ``web/src/sh_table.js`` passes)."""
-    if mode not in MODES:
-        raise InputError(f"unknown SH-table mode {mode!r}; valid modes are {list(MODES)}")
+    if mode not in _MODE_DEFINE:
+        raise InputError(f"unknown SH-table mode {mode!r}; valid modes are {list(_MODE_DEFINE)}")
     lay = check_layout(layout)
     out: dict[str, object] = {"SH_ORDER": int(order),
                               "TABLE_PARABOLIC" if lay == "parabolic" else "TABLE_HEMI_OCTAHEDRAL": None,
@@ -173,9 +178,30 @@ class TableRenderer:
         return np.asarray(raw[:count, :3])
 
     # ------------------------------------------------------------------------------------------ passes
+    def set_transfer(self, folded: ArrayLike) -> None:
+        """Upload folded transfer matrices (V, n, n) for ``transfer`` (float16: rows padded to a multiple of 4
+        values, one RGBA16F texel per 4, vertex p from texel ``p n ceil(n / 4)``, DATA_WIDTH texels a row)."""
+        from relight.envmap.exr import to_half_safe
+
+        t = np.asarray(folded, dtype=np.float64)
+        if t.ndim != 3 or t.shape[1:] != (self.n, self.n):
+            raise InputError(f"folded transfer must be (V, {self.n}, {self.n}), got shape {t.shape}")
+        row = -(-self.n // 4) * 4
+        padded = np.zeros((t.shape[0], self.n, row))
+        padded[:, :, : self.n] = t
+        texels = padded.reshape(-1, 4)
+        rows = _rows(texels.shape[0])
+        data = np.zeros((rows * DATA_WIDTH, 4), dtype="<f2")
+        data[: texels.shape[0]] = to_half_safe(texels)[0]
+        if self._data is not None:
+            self._data.release()
+        self._data = self.ctx.texture((DATA_WIDTH, rows), 4, data.tobytes(), dtype="f2")
+        self._data.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+
     def prepare(self, mode: Mode, geo: _Geometry, *, view: ArrayLike, lighting: ArrayLike) -> None:
-        """The fixed modes' per-vertex data (module docstring) into the vertex data texture; ``general``: none."""
-        if mode == "general":
+        """The fixed modes' per-vertex data (module docstring) into the vertex data texture; ``general`` and
+        ``transfer`` (whose data :meth:`set_transfer` uploads): none."""
+        if mode in ("general", "transfer"):
             return
         prog = self.program(mode, "PRECOMPUTE")
         self._uniforms(prog, view, lighting)

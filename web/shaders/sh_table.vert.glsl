@@ -7,6 +7,9 @@
 //   MODE_FIXED_LIGHT  the local lighting L_p was stored per vertex (u_vertex_data, a PRECOMPUTE pass): steps 2-4;
 //   MODE_FIXED_VIEW   the table coefficients at v_p, turned to the world frame, were stored per vertex: per frame
 //                     one dot product with u_light.
+//   MODE_TRANSFER     PRT (§5): per vertex the folded transfer matrix T'_p = S M(R_p) T_p (relight/sh_prt.py) in
+//                     u_vertex_data, row i in SHR_ROW_TEXELS RGBA texels (row-major, rows padded with zeros),
+//                     vertex p from texel p * SHR_COUNT * SHR_ROW_TEXELS: L_p = T'_p u_light, then steps 3-4.
 // Targets (at most one define):
 //   (none)            the mesh through u_view_projection, v_color = Q;
 //   PROBE             one point per vertex at texel gl_VertexID (row-major) of a u_output_size float target (tests);
@@ -34,6 +37,8 @@ uniform ivec2 u_output_size;  // PROBE / PRECOMPUTE target (texels)
 out vec3 v_color;
 
 vec3 tbl_c[SHR_COUNT];
+
+#define SHR_ROW_TEXELS ((SHR_COUNT + 3) / 4)
 
 vec3 table_clamp(vec3 v) {
     if (v.z >= VIEW_RIM_Z) {
@@ -88,6 +93,23 @@ void main() {
 #  elif defined(MODE_FIXED_LIGHT)
     for (int i = 0; i < SHR_COUNT; ++i) {
         shr_c[i] = vertex_data(gl_VertexID, i);
+    }
+#  elif defined(MODE_TRANSFER)
+    vec3 light[4 * SHR_ROW_TEXELS];
+    for (int j = 0; j < 4 * SHR_ROW_TEXELS; ++j) {
+        light[j] = j < SHR_COUNT ? u_light[j] : vec3(0.0);
+    }
+    int w = textureSize(u_vertex_data, 0).x;
+    int base = gl_VertexID * SHR_COUNT * SHR_ROW_TEXELS;
+    for (int i = 0; i < SHR_COUNT; ++i) {
+        vec3 acc = vec3(0.0);
+        for (int j4 = 0; j4 < SHR_ROW_TEXELS; ++j4) {
+            int k = base + i * SHR_ROW_TEXELS + j4;
+            vec4 row = texelFetch(u_vertex_data, ivec2(k % w, k / w), 0);
+            acc += row.x * light[4 * j4] + row.y * light[4 * j4 + 1] + row.z * light[4 * j4 + 2]
+                + row.w * light[4 * j4 + 3];
+        }
+        shr_c[i] = acc;
     }
 #  endif
 #  ifdef PRECOMPUTE
