@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -35,15 +36,13 @@ LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
 
 def ring_thetas(height: int) -> FloatArray:
     """Polar angle from +Y of each row's centre: ``theta_i = (i + 0.5) pi / H``."""
-    if height <= 0:
-        raise ValueError(f"height must be positive, got {height}")
+    validate.positive_int("height", height)
     return (np.arange(height) + 0.5) * np.pi / height
 
 
 def column_phis(width: int) -> FloatArray:
     """Azimuth of each column's centre: ``phi_j = ((j + 0.5) / W - 0.5) 2 pi``."""
-    if width <= 0:
-        raise ValueError(f"width must be positive, got {width}")
+    validate.positive_int("width", width)
     return ((np.arange(width) + 0.5) / width - 0.5) * 2.0 * np.pi
 
 

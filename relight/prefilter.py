@@ -22,7 +22,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import __version__, indexing, sh
+from relight import __version__, indexing, sh, validate
 from relight.brdf.base import RadialLobe
 from relight.brdf.coefficients import (
     RadialSpectrum,
@@ -175,12 +175,12 @@ def prefilter_radial(
         raise InputError("give either epsilon or order, not both")
     if order is None and epsilon is None:
         epsilon = DEFAULT_EPSILON
-    if epsilon is not None and not 0.0 < epsilon < 1.0:
-        raise InputError(f"epsilon must lie in (0, 1), got {epsilon}")
-    if order is not None and order < 0:
-        raise InputError(f"order must be >= 0, got {order}")
-    if size is not None and not 2 <= size <= MAX_SIZE:
-        raise InputError(f"size must lie in [2, {MAX_SIZE}], got {size}")
+    if epsilon is not None:
+        validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
+    if order is not None:
+        validate.at_least("order", order, 0)
+    if size is not None:
+        validate.in_range("size", validate.integer("size", size), 2, MAX_SIZE)
     if window not in WINDOWS:
         raise InputError(f"unknown window {window!r}; use one of {', '.join(WINDOWS)}")
     pixels = require_rgb_latlong(pixels)

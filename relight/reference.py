@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.base import RadialLobe
 from relight.conventions import latlong_dirs, pixel_solid_angles, require_rgb_latlong, ring_thetas
-from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
@@ -63,8 +63,7 @@ def reference_radial(
     """Brute-force ``B(C)`` on an S x 2S lat-long grid of centres C (same layout as the input), (S, 2S, C)."""
     env = np.asarray(require_rgb_latlong(pixels), dtype=np.float64)
     h, w = env.shape[:2]
-    if size < 1:
-        raise InputError(f"size must be >= 1, got {size}")
+    validate.at_least("size", size, 1)
     theta_star = truncation_angle(lobe, epsilon)
     cos_star = np.cos(theta_star)
     env_dirs = latlong_dirs(h, w)  # (H, W, 3)

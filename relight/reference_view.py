@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.base import IsotropicBRDF, Lobe, RadialLobe
 from relight.conventions import check_latlong_shape, latlong_dirs, pixel_solid_angles, ring_thetas
 from relight.errors import InputError
@@ -289,8 +290,7 @@ def reference_view(
 
     Pixel R: ``N = normalize(R + V)``, then :func:`reflected_radiance`; R = -V (no normal) gives 0.
     """
-    if size < 1:
-        raise InputError(f"size must be >= 1, got {size}")
+    validate.at_least("size", size, 1)
     v = unit_view(view)
     r = latlong_dirs(size, 2 * size).reshape(-1, 3)
     n, ok = halfway_normals(r, v)
@@ -309,8 +309,7 @@ def reference_sphere(
     background: float = 0.0,
 ) -> FloatArray:
     """Brute-force image of the unit sphere of ``relight.shrm.render_sphere`` (same camera), (size, size, 3)."""
-    if size < 1:
-        raise InputError(f"size must be >= 1, got {size}")
+    validate.at_least("size", size, 1)
     v = unit_view(view)
     n, mask = sphere_geometry(v, size)
     out = np.full((size, size, 3), float(background))

@@ -32,6 +32,7 @@ import ducc0
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.conventions import check_latlong_shape, phi0, ring_thetas
 from relight.indexing import full_indices, full_size, healpy_index, healpy_lm, healpy_size
 from relight.settings import SETTINGS, limit_blas_threads
@@ -218,8 +219,7 @@ def project(
 
     ``field`` is (H, W) or (H, W, C) with W = 2H; returns (nalm,) or (C, nalm) complex128.
     """
-    if lmax < 0:
-        raise ValueError(f"lmax must be >= 0, got {lmax}")
+    validate.at_least("lmax", lmax, 0)
     a = np.asarray(field)
     if a.ndim not in (2, 3):
         raise ValueError(f"expected an (H, W) or (H, W, C) map, got shape {a.shape}")

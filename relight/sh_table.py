@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.brdf.frame import FrameBRDF, FrameSum, as_frame_brdf, mirror_local
 from relight.errors import InputError
 from relight.sh_rotation import band_rotations, rotate_coefficients, rotation_about_z
@@ -63,8 +64,7 @@ VIEW_CHUNK = 32
 def lobe_quadrature(width: float, refine: int = 1, *, horizon: bool = False) -> tuple[FloatArray, FloatArray]:
     """Nodes (K, 3) about +z and weights (K,) (module docstring); weights sum to 4 pi. ``horizon``: add pi/2 to the
     panel edges (for grids about the normal, where the horizon's kink of ``max(0, s_z)`` then falls on an edge)."""
-    if refine < 1:
-        raise InputError(f"refine must be >= 1, got {refine}")
+    validate.at_least("refine", refine, 1)
     w = float(np.clip(width, 1e-3, np.pi / 2))
     edges = [0.0, w / 2]
     while edges[-1] * 2 < np.pi:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.base import RadialLobe
 from relight.errors import InputError
 
@@ -124,8 +125,7 @@ class RadialSpectrum:
 
 def radial_transfer(lobe: RadialLobe, lmax: int) -> RadialSpectrum:
     """``Lambda_l rho_l`` for l = 0..lmax by quadrature, with the lobe's band and total energies."""
-    if lmax < 0:
-        raise ValueError(f"lmax must be >= 0, got {lmax}")
+    validate.at_least("lmax", lmax, 0)
     closed = getattr(lobe, "closed_form_transfer", None)  # closed forms (relight.brdf.vmf) skip the quadrature
     if callable(closed):
         tr = np.asarray(closed(lmax), dtype=np.float64)
@@ -159,8 +159,7 @@ def spectrum_for_tolerance(lobe: RadialLobe, epsilon: float, *, lmax_cap: int = 
 
     The probe order doubles until the tolerance is met or ``lmax_cap`` is reached (then F = lmax_cap).
     """
-    if not 0.0 < epsilon < 1.0:
-        raise ValueError(f"epsilon must lie in (0, 1), got {epsilon}")
+    validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
     probe = max(16, int(np.ceil(4.0 / max(lobe_width(lobe), 1e-3))))
     while True:
         probe = min(probe, lmax_cap)

@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import sh
+from relight import sh, validate
 from relight.brdf.base import Lobe, RadialLobe
 from relight.brdf.coefficients import lambda_l, radial_transfer
 
@@ -119,8 +119,7 @@ def tabulation_grid(
     """
     if f_order < 0 or p_order < 0:
         raise ValueError(f"orders must be >= 0, got F={f_order}, P={p_order}")
-    if oversample <= 0.0:
-        raise ValueError(f"oversample must be positive, got {oversample}")
+    validate.positive("oversample", oversample)
     n_i = math.ceil(oversample * max(SAMPLES_PER_ORDER * (f_order + 1), MIN_THETA_I))
     n_o = 1 if radial else math.ceil(oversample * max(SAMPLES_PER_ORDER * p_order, MIN_THETA_O))
     n_phi = 1 if (radial or azimuthal) else math.ceil(oversample * max(SAMPLES_PER_ORDER * p_order // 2, MIN_PHI))
@@ -409,8 +408,7 @@ def select_orders(
     P = 0). Then shrink P as far as ``epsilon(F0, P) <= epsilon`` holds, and then F at that P. If the caps are
     reached first the caps are returned with ``met = False``.
     """
-    if not 0.0 < epsilon < 1.0:
-        raise ValueError(f"epsilon must lie in (0, 1), got {epsilon}")
+    validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
     f0, p0 = start if start is not None else starting_orders(lobe)
     if lobe.radially_symmetric:
         p0 = 0

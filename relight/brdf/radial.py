@@ -10,13 +10,13 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.base import Center, FloatArray, RadialLobe
 from relight.errors import InputError
 
@@ -25,16 +25,7 @@ PHONG_MAX_EXPONENT = 1.0e5
 
 
 def _finite(name: str, value: Any, lo: float, hi: float, *, lo_open: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise InputError(f"{name} must be finite, got {value!r}")
-    if (v <= lo if lo_open else v < lo) or v > hi:
-        bracket = "(" if lo_open else "["
-        raise InputError(f"{name} must lie in {bracket}{lo:g}, {hi:g}], got {v:g}")
-    return v
+    return validate.in_range(name, value, lo, hi, lo_open=lo_open)
 
 
 class Phong(RadialLobe):

@@ -37,8 +37,7 @@ def cube_face_dirs(size: int) -> NDArray[np.float64]:
     Texel (row r, column c) has ``s = (c + 0.5) / size``, ``t = (r + 0.5) / size`` and, with ``a = 2 s - 1``,
     ``b = 2 t - 1``, the direction given by inverting OpenGL 4.6 table 8.19 (see :func:`cube_to_latlong`).
     """
-    if size <= 0:
-        raise InputError(f"cube face size must be positive, got {size}")
+    validate.positive_int("cube face size", size)
     g = (np.arange(size) + 0.5) / size * 2.0 - 1.0
     return _face_uv_to_dirs(g[None, :, None], g[None, None, :], np.arange(6)[:, None, None])
 
@@ -182,8 +181,7 @@ def cube_to_latlong(faces: Mapping[str, NDArray[np.floating]] | NDArray[np.float
     size, channels = cube.shape[1], cube.shape[3]
     width = 2 * height
     n = int(samples) if samples is not None else max(2, math.ceil(8.0 * size / height))
-    if n <= 0:
-        raise InputError(f"samples must be positive, got {samples}")
+    validate.positive_int("samples", n)
     planes = np.ascontiguousarray(_pad_cube(cube).reshape(-1, channels).T, dtype=np.float32)
     # Equal-area sub-sample grid: z = cos(theta) uniform in each row band, phi uniform in each column.
     z_edges = np.cos(np.arange(height + 1) * np.pi / height)

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.conventions import (
     latlong_dirs,
     sample_latlong,
@@ -39,9 +40,7 @@ def reflect(shrm: SHRM, view: NDArray[np.floating] | Sequence[float], *, size: i
     bilinearly at N and T(N). The one direction R = -V (no normal) reads 0.
     """
     v = unit_view(view)
-    s = shrm.height if size is None else int(size)
-    if s < 1:
-        raise InputError(f"size must be >= 1, got {s}")
+    s = shrm.height if size is None else validate.at_least("size", size, 1)
     r = latlong_dirs(s, 2 * s)
     n, ok = halfway_normals(r, v)
     out = np.zeros((s, 2 * s, 3))
@@ -94,8 +93,7 @@ def render_sphere(
     Pixels off the sphere get ``background``.
     """
     v = unit_view(view)
-    if size < 1:
-        raise InputError(f"size must be >= 1, got {size}")
+    validate.at_least("size", size, 1)
     n, mask = sphere_geometry(v, size)
     out = np.empty((size, size, 3))
     out[...] = np.asarray(background, dtype=np.float64)

@@ -9,12 +9,12 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.conventions import (
     dirs_to_angles,
     latlong_dirs,
     ring_thetas,
 )
-from relight.errors import InputError
 from relight.indexing import full_index
 from relight.shrm.basis import (
     FloatArray,
@@ -38,8 +38,7 @@ def icosahedron_views() -> FloatArray:
 
 def view_grid(t_b: int) -> FloatArray:
     """A ``T_B x T_B`` set of view directions (App. C): lat-long pixel centres of a T_B x T_B grid, (T_B, T_B, 3)."""
-    if t_b < 1:
-        raise InputError(f"T_B must be >= 1, got {t_b}")
+    validate.at_least("T_B", t_b, 1)
     t = ring_thetas(t_b)[:, None]
     p = ((np.arange(t_b) + 0.5) / t_b - 0.5)[None, :] * 2.0 * np.pi
     st = np.sin(t)
@@ -77,8 +76,7 @@ def kautz_mccool_texture(comp: SHRMComponent, n_theta: int) -> NDArray[np.float3
 
     ``theta_o`` at the midpoints ``(k + 1/2) pi / n_theta``; shape (n_theta, S, 2S, 3).
     """
-    if n_theta < 1:
-        raise InputError(f"n_theta must be >= 1, got {n_theta}")
+    validate.at_least("n_theta", n_theta, 1)
     theta = ring_thetas(n_theta)
     y = real_harmonics(comp.P, theta, np.zeros_like(theta))  # (n, (P+1)^2)
     out = np.zeros((n_theta,) + comp.maps.shape[1:])

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import __version__, costmodel
+from relight import __version__, costmodel, validate
 from relight.brdf.base import Lobe, RadialLobe
 from relight.conventions import luminance
 from relight.errors import InputError, RelightError
@@ -94,11 +94,9 @@ def sweep(
     if not epsilons and not truncations:
         raise InputError("a sweep needs at least one epsilon or one truncation")
     for e in epsilons:
-        if not 0.0 < float(e) < 1.0:
-            raise InputError(f"epsilon must lie in (0, 1), got {e}")
+        validate.in_range("epsilon", e, 0.0, 1.0, lo_open=True, hi_open=True)
     for t in truncations:
-        if not 0.0 < float(t) < 1.0:
-            raise InputError(f"truncation must lie in (0, 1), got {t}")
+        validate.in_range("truncation", t, 0.0, 1.0, lo_open=True, hi_open=True)
     s = default_size(h) if size is None else int(size)
     if not 2 <= s <= 4 * h:
         raise InputError(f"size must lie in 2..{4 * h} for a {h}-row map, got {s}")
