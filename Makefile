@@ -11,9 +11,10 @@ STAMP  := $(VENV)/.installed
 # Debian packages the tests need: chromium (real-browser tests, never a downloaded browser), Mesa's EGL
 # (headless moderngl) and libllvm19 (Mitsuba 3's fast llvm_ad_rgb variant for the oracle test). Installed with apt
 # when missing and we are root (CI is); otherwise say what is missing.
-SYSTEM_PKGS := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libllvm19
+SYSTEM_PKGS := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libllvm19 libfilament-tools
 system-deps:
-	@if [ ! -x /usr/bin/chromium ] || ! ldconfig -p | grep -q libEGL_mesa || ! ldconfig -p | grep -q libLLVM.so.19; then \
+	@if [ ! -x /usr/bin/chromium ] || ! ldconfig -p | grep -q libEGL_mesa || ! ldconfig -p | grep -q libLLVM.so.19 \
+	    || [ ! -x /usr/bin/cmgen ]; then \
 	  if [ "$$(id -u)" = 0 ]; then \
 	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PKGS) >/dev/null; \
 	  else echo "need root to apt-get install $(SYSTEM_PKGS)" >&2; exit 1; fi; \
