@@ -8,6 +8,10 @@
         predicted error and App. B bound per level, seconds) for tools that do not read KTX2, and the map's SH9
         in every engine convention (``relight.sh9``; also in the KTX2 under ``relight.sh9``).
 
+    relight dfg [--size 128] [--multiscatter] --out FILE.exr|FILE.png
+        the split-sum DFG table (``relight.dfg``; docs/conventions.md "DFG"): R, G = (A, B) or, multiscatter,
+        (B, A + B); EXR float32 (B channel 0) or 16-bit PNG (linear, values x 65535, B channel 0).
+
     relight sh ENVMAP [--convention three|gltf|filament|babylon|raw] [--out FILE.json]
         the map's order-2 SH lighting (9 RGB coefficients) in that engine's order, sign and scaling
         (``relight.sh9``, docs/conventions.md "SH9"), as JSON on stdout or in FILE.
@@ -105,6 +109,39 @@ def cmd_sh(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_dfg(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from relight.dfg import dfg_table
+    from relight.errors import InputError
+
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise InputError(f"the folder of --out does not exist: {out.parent}")
+    suffix = out.suffix.lower()
+    if suffix not in (".exr", ".png"):
+        raise InputError(f"--out must end in .exr or .png, got {out.name!r}")
+    table = dfg_table(args.size, multiscatter=args.multiscatter)
+    rgb = np.concatenate([table, np.zeros(table.shape[:2] + (1,))], axis=-1)
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=suffix)
+    os.close(fd)
+    try:
+        if suffix == ".exr":
+            from relight.envmap.exr import write_exr
+
+            write_exr(tmp, rgb.astype(np.float32))
+        else:
+            import imagecodecs  # 16-bit PNG (libpng), as relight.envmap.ldr reads them
+
+            Path(tmp).write_bytes(imagecodecs.png_encode(np.round(np.clip(rgb, 0.0, 1.0) * 65535).astype(np.uint16)))
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    print(f"{out}: {args.size} x {args.size} DFG table ({'multiscatter' if args.multiscatter else 'A, B'})")
+    return 0
+
+
 def register(sub: Any) -> None:
     ex = sub.add_parser("export", help="engine-ready prefiltered cube chain (KTX2) of an environment map")
     ex.add_argument("envmap")
@@ -118,6 +155,12 @@ def register(sub: Any) -> None:
     ex.add_argument("--out", required=True)
     ex.add_argument("--json", action="store_true", help="print the manifest as JSON")
     ex.set_defaults(func=cmd_export)
+
+    dp = sub.add_parser("dfg", help="the split-sum DFG lookup table (GGX, height-correlated Smith, Schlick)")
+    dp.add_argument("--size", type=int, default=128)
+    dp.add_argument("--multiscatter", action="store_true", help="Filament's (B, A + B) layout")
+    dp.add_argument("--out", required=True, help="FILE.exr (float32) or FILE.png (16-bit)")
+    dp.set_defaults(func=cmd_dfg)
 
     sp = sub.add_parser("sh", help="order-2 SH lighting (9 RGB coefficients) in an engine's convention")
     sp.add_argument("envmap")
