@@ -116,6 +116,10 @@ def cmd_reflect(args: argparse.Namespace) -> int:
 def cmd_render(args: argparse.Namespace) -> int:
     """``relight render``: a sphere rendered with an SHRM file (global eq. 12, or local eq. 6 with ``--local``);
     with ``--fit`` and ``--chain`` seed 002's Gaussian lobes instead (``relight.cli_sg.render_gaussian``)."""
+    if args.table is not None:
+        from relight.cli_shtable import render_table
+
+        return render_table(args)
     if args.fit is not None or args.chain is not None:
         from relight.cli_sg import render_gaussian
 
@@ -164,4 +168,7 @@ def register(subparsers: Any) -> None:
     from relight.cli_sg import add_render_arguments
 
     add_render_arguments(rd)
+    from relight.cli_shtable import add_render_arguments as add_table_arguments
+
+    add_table_arguments(rd)
     rd.set_defaults(func=cmd_render)

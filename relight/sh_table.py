@@ -283,3 +283,34 @@ def product_energy(brdf: Any, view: ArrayLike, order: int, *, refine: int = 2) -
     l = np.repeat(np.arange(order + 1), 2 * np.arange(order + 1) + 1)
     bands = np.stack([(c[l == k] ** 2).sum(axis=0) for k in range(order + 1)])
     return bands, total
+
+
+def read_table(path: str | os.PathLike[str]) -> SHTable:
+    """A table written by :func:`write_table` (``.npz`` float32 or ``.exr`` float16 layers), with its manifest in
+    ``brdf`` / ``report``; the 1-D isotropic table is not stored, so lookups are bilinear on the map."""
+    from relight.envmap.exr import read_exr_layers
+
+    p = Path(path)
+    if p.suffix.lower() == ".npz":
+        with np.load(p, allow_pickle=False) as z:
+            if not {"coefficients", "views", "valid", "manifest"} <= set(z.files):
+                raise InputError(f"{p.name}: not an SH table (needs coefficients, views, valid, manifest)")
+            man = json.loads(str(z["manifest"]))
+            coeffs, views, valid = (np.asarray(z["coefficients"], np.float64), np.asarray(z["views"], np.float64),
+                                    np.asarray(z["valid"], bool))
+    elif p.suffix.lower() == ".exr":
+        layers, attrs = read_exr_layers(p)
+        if "relight.shtable" not in attrs:
+            raise InputError(f"{p.name}: not an SH table (no relight.shtable attribute)")
+        man = json.loads(attrs["relight.shtable"])
+        n = int(man["coefficients"])
+        coeffs = np.stack([layers[f"c{i}"] for i in range(n)], axis=2).astype(np.float64)
+        if int(man["channels"]) == 1:
+            coeffs = coeffs[..., :1]
+        views, valid = layers["views"].astype(np.float64), layers["valid"][..., 0] > 0.5
+    else:
+        raise InputError(f"the table file must end in .npz or .exr, got {p.name!r}")
+    if man.get("format") != "relight.sh-table":
+        raise InputError(f"{p.name}: manifest format is {man.get('format')!r}, expected 'relight.sh-table'")
+    return SHTable(coefficients=coeffs, views=views, valid=valid, order=int(man["order"]),
+                   layout=check_layout(man["layout"]), brdf=man["brdf"], report=man.get("report", {}))
