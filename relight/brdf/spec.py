@@ -10,7 +10,9 @@ String grammar (whitespace around tokens is ignored)::
 e.g. ``lambert``, ``phong:s=32``, ``microfacet:sigma=0.2``, ``torrance-sparrow:alpha=0.2,fresnel=none``,
 ``ggx:alpha=0.3,fresnel=schlick,f0=0.04``, ``blinn-phong:s=64``, ``lafortune:preset=housepaint-blue``,
 ``ward:alpha=0.1,rho_s=0.05,rho_d=0.5``, ``oren-nayar:sigma=0.3``, ``kajiya-kay:s=32``,
-``ggx-ld:roughness=0.3`` (the engines' split-sum prefilter lobe), ``merl:gold.binary``, ``measured:table.npz``,
+``ggx-ld:roughness=0.3`` (the engines' split-sum prefilter lobe), ``gltf-pbr:base=0.9/0.6/0.2,metallic=1,roughness=0.4``
+(glTF's metallic-roughness material, a preset for a Lambert + GGX sum; ``relight.brdf.gltf_pbr``),
+``merl:gold.binary``, ``measured:table.npz``,
 ``lobe1d:lobe.json``, ``lambert:albedo=0.5+phong:s=64``,
 ``vmf:sigma=0.1`` (a normalised spherical Gaussian, sigma in radians), ``gaussian-lobes:fit.json`` (a fitted or
 hand-written Gaussian-lobe material, ``relight.brdf.gaussian_lobes``).
@@ -46,6 +48,7 @@ from relight.brdf.anisotropic import AnisotropicTorranceSparrow, AshikhminShirle
 from relight.brdf.base import Lobe
 from relight.brdf.frame import FrameBRDF, FrameSum, as_frame_brdf
 from relight.brdf.gaussian_lobes import GaussianLobes
+from relight.brdf.gltf_pbr import gltf_pbr
 from relight.brdf.measured import MERLBRDF, TabulatedBRDF
 from relight.brdf.models import (
     GGX,
@@ -91,6 +94,7 @@ _KEYS: dict[str, dict[str, str]] = {
     "oren-nayar": {"sigma": "number", "albedo": "color"},
     "kajiya-kay": {"s": "number"},
     "ggx-ld": {"roughness": "number"},
+    "gltf-pbr": {"base": "color", "metallic": "number", "roughness": "number"},
     "merl": {"path": "path", "lookup": "word"},
     "measured": {"path": "path"},
     "vmf": {"sigma": "number", "weight": "color"},
@@ -101,7 +105,12 @@ _PATH_KINDS = ("merl", "measured", "lobe1d", "gaussian-lobes")
 VALID_KINDS = sorted([*_KEYS, "sum"])
 
 
-def _build(kind: str, kw: dict[str, Any]) -> Lobe | FrameBRDF:
+def _build(kind: str, kw: dict[str, Any]) -> Lobe | SumBRDF | FrameBRDF:
+    if kind == "gltf-pbr":  # a preset: a sum of lobes
+        try:
+            return gltf_pbr(**kw)
+        except TypeError as exc:
+            raise InputError(f"{kind}: {exc}; valid keys are {sorted(_KEYS[kind])}") from None
     if kind == "torrance-sparrow":
         check_exclusive(kind, kw, "alpha", ("alpha_u", "alpha_v"))
     if kind == "ward":
@@ -229,7 +238,7 @@ def _split_terms(spec: str) -> list[str]:
     return terms
 
 
-def _parse_term(term: str) -> Lobe | FrameBRDF:
+def _parse_term(term: str) -> Lobe | SumBRDF | FrameBRDF:
     text = term.strip()
     if not text:
         raise InputError(f"empty BRDF term; valid kinds are {VALID_KINDS}")
@@ -344,7 +353,10 @@ def _parse_any(spec: str | Mapping[str, Any] | list[Any] | os.PathLike[str]) -> 
         raise InputError(f"a BRDF spec must be a string, a dict or a JSON file path, got {type(spec).__name__}")
     if not spec.strip():
         raise InputError(f"empty BRDF spec; valid kinds are {VALID_KINDS}")
-    terms = [_parse_term(t) for t in _split_terms(spec)]
+    terms: list[Lobe | FrameBRDF] = []
+    for t in _split_terms(spec):
+        parsed = _parse_term(t)
+        terms.extend(parsed.lobes if isinstance(parsed, SumBRDF) else [parsed])  # presets expand to their lobes
     lobes = [t for t in terms if isinstance(t, Lobe)]
     if len(lobes) < len(terms):
         return _frame_sum(terms)
