@@ -129,8 +129,11 @@ def free_rays(caster: RayCaster, points: FloatArray, normals: FloatArray, dirs: 
     """``V(x, w_s)`` for points x (B, 3) with normals (B, 3) and directions (R, 3): True where the ray from
     ``x + offset n`` (``relight.raycast``) escapes the mesh, (B, R)."""
     b, r = points.shape[0], dirs.shape[0]
-    origins = np.repeat((points + offset * normals).astype(np.float32), r, axis=0)
-    return np.asarray(~caster.occluded(origins, np.tile(dirs.astype(np.float32), (b, 1))), dtype=bool).reshape(b, r)
+    # direction-major: the B rays of one direction are parallel, so consecutive queries walk the same BVH nodes
+    # (measured 1.4-1.5x faster than vertex-major on the 117K-vertex bunny, bench/visibility.py)
+    origins = np.tile((points + offset * normals).astype(np.float32), (r, 1))
+    occluded = caster.occluded(origins, np.repeat(dirs.astype(np.float32), b, axis=0)).reshape(r, b)
+    return np.ascontiguousarray(~occluded.T)
 
 
 @dataclass
@@ -205,9 +208,9 @@ def transfer_block(mesh: TriangleMesh, start: int, stop: int, settings: Transfer
     dirs = directions(s.rays, s.sampling, s.seed)
     b, r = pts.shape[0], s.rays
     cosine = np.maximum(nrm @ dirs.T, 0.0)  # (B, R)
-    origins = np.repeat(pts + ray_offset(mesh.positions) * nrm, r, axis=0)
-    hits = caster.intersect(origins, np.tile(dirs, (b, 1)))
-    prim = hits.prim.reshape(b, r)
+    origins = np.tile(pts + ray_offset(mesh.positions) * nrm, (r, 1))  # direction-major, as free_rays
+    hits = caster.intersect(origins, np.repeat(dirs, b, axis=0))
+    prim = np.ascontiguousarray(hits.prim.reshape(r, b).T)
     fn = np.cross(mesh.positions[mesh.faces[:, 1]] - mesh.positions[mesh.faces[:, 0]],
                   mesh.positions[mesh.faces[:, 2]] - mesh.positions[mesh.faces[:, 0]])
     hit = prim >= 0
@@ -217,7 +220,7 @@ def transfer_block(mesh: TriangleMesh, start: int, stop: int, settings: Transfer
     w = (s.albedo * 4.0 * np.pi / r / np.pi) * np.where(front, cosine, 0.0)
     rows, cols = np.nonzero(front)
     tri = mesh.faces[prim[rows, cols]]
-    u, v = hits.u.reshape(b, r)[rows, cols], hits.v.reshape(b, r)[rows, cols]
+    u, v = hits.u.reshape(r, b).T[rows, cols], hits.v.reshape(r, b).T[rows, cols]
     bary = np.stack([1.0 - u - v, u, v], axis=1) * w[rows, cols][:, None]
     gather = scipy.sparse.csr_matrix((bary.ravel(), (np.repeat(rows, 3), tri.ravel())),
                                      shape=(b, mesh.n_vertices))

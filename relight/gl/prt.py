@@ -16,7 +16,9 @@ not a new job. :func:`cosine_zonal` gives the clamped cosine's ``2 I_l`` of the 
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Callable, Iterator
 from typing import Any, Final, Literal
 
 import numpy as np
@@ -170,10 +172,37 @@ class PrtRenderer:
             tex.release()
         return np.asarray(raw[: self.mesh.n_vertices, :3])
 
-    def draw(self, mode: Mode, view: ArrayLike, lighting: ArrayLike, size: int, *, albedo: float = 1.0,
-             frames: int = 1) -> NDArray[np.float32]:
+    def draw(self, mode: Mode, view: ArrayLike, lighting: ArrayLike, size: int, *,
+             albedo: float = 1.0) -> NDArray[np.float32]:
         """A (size, size, 3) float32 image (row 0 at the top) from the orthographic camera looking along -view,
-        background 0. ``frames`` > 1 draws that many frames before reading (the benchmark's per-frame cost)."""
+        background 0."""
+        with self._target(mode, view, lighting, size, albedo) as frame:
+            raw = frame()
+        return np.ascontiguousarray(raw[::-1, :, :3])
+
+    def frame_seconds(self, modes: list[Mode], view: ArrayLike, lighting: ArrayLike, size: int,
+                      frames: int) -> dict[str, list[float]]:
+        """Wall seconds of ``frames`` frames per mode, the modes interleaved frame by frame (so a change of machine
+        load affects them alike), each frame finished (``glFinish``) before the clock stops; nothing read back."""
+        out: dict[str, list[float]] = {m: [] for m in modes}
+        import time
+        from contextlib import ExitStack
+
+        with ExitStack() as stack:
+            draws = {m: stack.enter_context(self._target(m, view, lighting, size, 1.0)) for m in modes}
+            for m in modes:  # warm-up: shader compilation and first uploads
+                draws[m](read=False)
+            for _ in range(frames):
+                for m in modes:
+                    t0 = time.perf_counter()
+                    draws[m](read=False)
+                    out[m].append(time.perf_counter() - t0)
+        return out
+
+    @contextlib.contextmanager
+    def _target(self, mode: Mode, view: ArrayLike, lighting: ArrayLike, size: int,
+                albedo: float) -> Iterator[Callable[..., NDArray[np.float32]]]:
+        """A float target with depth and ``frame(read=True)``: clear, draw, finish, and read the pixels back."""
         import moderngl
 
         if not 1 <= size <= 4096:
@@ -181,27 +210,34 @@ class PrtRenderer:
         v = np.asarray(view, dtype=np.float64)
         v = v / np.linalg.norm(v)
         prog = self.program(mode)
-        self._uniforms(prog, lighting, albedo)
-        _set(prog, "u_view_projection", tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel()))
-        _set(prog, "u_model", tuple(model_matrix(self.mesh).T.ravel()))
+        vp = tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel())
+        model = tuple(model_matrix(self.mesh).T.ravel())
         color = self.ctx.texture((size, size), 4, dtype="f4")
         depth = self.ctx.depth_renderbuffer((size, size))
         fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         vao = self._vao(prog, indexed=True)
-        try:
+
+        def frame(read: bool = True) -> NDArray[np.float32]:
+            self._uniforms(prog, lighting, albedo)
+            _set(prog, "u_view_projection", vp)
+            _set(prog, "u_model", model)
             fbo.use()
             self.ctx.enable(moderngl.DEPTH_TEST)
             self.ctx.disable(moderngl.CULL_FACE)
-            for _ in range(max(1, frames)):
-                fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-                vao.render(moderngl.TRIANGLES)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+            fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+            vao.render(moderngl.TRIANGLES)
+            if not read:
+                self.ctx.finish()
+                return np.zeros((0, 0, 4), dtype=np.float32)
+            return np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+
+        try:
+            yield frame
         finally:
             vao.release()
             fbo.release()
             color.release()
             depth.release()
-        return np.ascontiguousarray(raw[::-1, :, :3])
 
 
 def _set(prog: Any, name: str, value: Any) -> None:

@@ -10,7 +10,8 @@ P_B = 0 need no V at all (the map is indexed by R or N, computed per pixel), so 
 
 Every plan lists each effect simulated and each effect skipped with the reason (view dependence of a radially
 symmetric lobe, q != 0 terms of an azimuthally symmetric one, orders above the tolerance, near-viewer variation,
-shadowing and interreflection, which are not yet supported).
+self-shadowing (simulated for Lambertian lobes on meshes by precomputed transfer, ``relight.planning.shadows``; not
+for glossy lobes) and interreflection, which is not yet supported).
 """
 
 from __future__ import annotations
@@ -18,11 +19,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from relight.planning.report import Computation, Effect
+from relight.planning.report import Computation, Effect, ShadowPlan
 from relight.planning.scene import SceneObject
+from relight.planning.shadows import shadow_effects
 
 UNSUPPORTED = (
-    ("shadowing", "not simulated: not yet supported (every lobe sees the whole environment; no self-occlusion)"),
     ("interreflection", "not simulated: not yet supported (objects do not light each other)"),
 )
 
@@ -71,8 +72,10 @@ def viewer_of(obj: SceneObject, comps: list[Computation], epsilon: float) -> Vie
                   near_below_distance=near_threshold_distance(obj.size, p_max, epsilon))
 
 
-def effects(obj: SceneObject, comps: list[Computation], viewer: Viewer, epsilon: float) -> list[Effect]:
-    """What is simulated and what is skipped for one object, with reasons."""
+def effects(obj: SceneObject, comps: list[Computation], viewer: Viewer, epsilon: float,
+            shadows: ShadowPlan | None = None) -> list[Effect]:
+    """What is simulated and what is skipped for one object, with reasons (``shadows``: its diffuse transfer,
+    :func:`relight.planning.shadows.shadow_plan`)."""
     out: list[Effect] = []
     for c in comps:
         lobe = f"{c.kind} ({c.center}-centred)"
@@ -115,6 +118,7 @@ def effects(obj: SceneObject, comps: list[Computation], viewer: Viewer, epsilon:
                       reason="the maps do not depend on the shape; it only sets the normals looked up per pixel"))
     out.append(Effect(effect="parallax of the environment", simulated=False,
                       reason="the environment is distant (seed 000 §3): the same lighting at every point"))
+    out.extend(shadow_effects(obj, comps, shadows))
     for effect, reason in UNSUPPORTED:
         out.append(Effect(effect=effect, simulated=False, reason=reason))
     return out

@@ -1,6 +1,7 @@
 """Running a scene plan (seed 000 App. C steps 2–3, eqs. 6, 12): every computation once from the plan's shared
 lighting, then per object its SHRM (``relight.shrm_io``), the eq. 12 map for its view and the irradiance coefficients
-of Lambertian lobes."""
+of Lambertian lobes, and for Lambertian objects on meshes their per-vertex shadowed transfer
+(``relight.planning.shadows``, ``<object>.transfer.npz``)."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from relight import __version__, indexing
 from relight.brdf.base import RadialLobe
 from relight.errors import InputError
 from relight.jsonable import jsonable
-from relight.planning.report import Computation, ObjectFiles, ObjectResult, SceneResult
+from relight.planning.report import Computation, ObjectFiles, ObjectResult, SceneResult, ShadowPlan
 from relight.planning.scene_plan import Plan, plan_json
 
 FloatArray = NDArray[np.float64]
@@ -27,11 +28,13 @@ FloatArray = NDArray[np.float64]
 @dataclass(frozen=True)
 class SceneRun:
     """:func:`run_plan`'s answer: the typed result (``result.json``) and, when nothing was written, every object's
-    eq. 12 view map and SHRM by object name."""
+    eq. 12 view map, SHRM and (for shadowed objects) diffuse transfer by object name."""
 
     result: SceneResult
     maps: dict[str, FloatArray] = field(default_factory=dict)
     shrms: dict[str, Any] = field(default_factory=dict)  # relight.shrm.SHRM
+    #: per shadowed object, its ``relight.visibility.TransferResult`` (relight.planning.shadows)
+    transfers: dict[str, Any] = field(default_factory=dict)
 
 
 def compute_component(plan: Plan, comp: Computation) -> Any:
@@ -71,6 +74,29 @@ def irradiance_coefficients(plan: Plan, comp: Computation) -> list[list[float]]:
     return [[float(x) for x in row] for row in sh.to_real(b, f_b)]
 
 
+def compute_shadows(shadows: ShadowPlan) -> Any:
+    """The diffuse transfer a plan states for an object (``relight.planning.shadows``): a
+    ``relight.visibility.TransferResult`` of its sample mesh."""
+    from relight.mesh import sample_mesh
+    from relight.visibility import TransferSettings, compute_transfer
+
+    settings = TransferSettings(order=shadows.order, rays=shadows.rays, kind="diffuse_transfer")
+    return compute_transfer(sample_mesh(shadows.mesh), settings)
+
+
+def save_transfer(path: Path, mesh_name: str, transfer: Any) -> None:
+    """``<object>.transfer.npz``: the arrays of ``relight visibility --out`` (positions, normals, faces, ao,
+    visibility, transfer and their errors, manifest)."""
+    from relight.mesh import sample_mesh
+
+    mesh = sample_mesh(mesh_name)
+    arrays: dict[str, Any] = {"positions": mesh.positions.astype(np.float32),
+                              "normals": mesh.normals.astype(np.float32), "faces": mesh.faces.astype(np.int32),
+                              **transfer.arrays, "manifest": np.array(json.dumps(jsonable(transfer.manifest)))}
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+
+
 def run_plan(
     plan: Plan, out_dir: str | Path | None = None, *, write: bool = True, preview_size: int = 0
 ) -> SceneRun:
@@ -108,6 +134,7 @@ def run_plan(
     objects: list[ObjectResult] = []
     maps: dict[str, FloatArray] = {}
     shrms: dict[str, Any] = {}
+    transfers: dict[str, Any] = {}
     for o in rep.objects:
         shrm = SHRM(components=[comps[i] for i in o.computations], brdf=None, report={
             "representation": "shrm", "layout": "local", "relight_version": __version__,
@@ -119,6 +146,18 @@ def run_plan(
         if irr:
             entry = dataclasses.replace(entry, irradiance_real_sh={c.id: irradiance_coefficients(plan, c)
                                                                    for c in irr})
+        transfer_file = None
+        if o.shadows is not None:
+            transfer = compute_shadows(o.shadows)
+            entry = dataclasses.replace(entry, shadows={k: transfer.manifest[k] for k in (
+                "order", "rays", "vertices", "monte_carlo_error_rms", "seconds")})
+            t = lap("shadows", t)
+            if write and out is not None:
+                path = out / f"{o.name}.transfer.npz"
+                save_transfer(path, o.shadows.mesh, transfer)
+                transfer_file = path.name
+            else:
+                transfers[o.name] = transfer
         if write and out is not None:
             from relight.envmap import write_exr, write_png_preview
             from relight.shrm_io import write_shrm
@@ -128,7 +167,7 @@ def run_plan(
             view_path = out / f"{o.name}.view.exr"
             write_exr(view_path, image.astype(np.float32))
             files = ObjectFiles(shrm=shrm_path.name, manifest=shrm_path.with_suffix(".json").name,
-                                view_map=view_path.name)
+                                view_map=view_path.name, transfer=transfer_file)
             if preview_size > 0:
                 sphere = render_sphere(shrm, o.view, preview_size, local=o.viewer == "near")
                 png = out / f"{o.name}.sphere.png"
@@ -149,4 +188,4 @@ def run_plan(
     if write and out is not None:
         (out / "plan.json").write_text(plan_json(plan))
         (out / "result.json").write_text(json.dumps(jsonable(result.to_json()), indent=1, allow_nan=False))
-    return SceneRun(result, maps, shrms)
+    return SceneRun(result, maps, shrms, transfers)

@@ -62,6 +62,24 @@ class Effect(Report):
 
 
 @dataclass(frozen=True, kw_only=True)
+class ShadowPlan(Report):
+    """The per-vertex diffuse transfer an object's run computes (``relight.planning.shadows``): mesh, order F, rays
+    per vertex, the predicted Monte Carlo error (i.i.d. bound on the per-vertex norm, absolute and relative to an
+    unoccluded vertex's transfer) and seconds, and the Lambertian computations it shadows."""
+
+    kind: str
+    mesh: str
+    vertices: int
+    order: int
+    coefficients: int
+    rays: int
+    predicted_monte_carlo_error: float
+    predicted_relative_error: float
+    predicted_seconds: float
+    lobes: list[str]
+
+
+@dataclass(frozen=True, kw_only=True)
 class ObjectPlan(Report):
     """One object: itself (``relight.planning.scene.SceneObject``'s fields), its viewer (distant: one V, the global
     SHRM, eq. 7; near: V per pixel, the local SHRM, eq. 6), output rows, computations, worst error and effects."""
@@ -82,6 +100,8 @@ class ObjectPlan(Report):
     computations: list[str]
     predicted_error: ErrorSummary
     effects: list[Effect]
+    #: the diffuse transfer the run computes (``relight.planning.shadows``), None without shadows
+    shadows: ShadowPlan | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -153,6 +173,8 @@ class ObjectFiles(Report):
     sphere_png: str | None = field(default=None, metadata=OMIT_NONE)
     coefficients_bin: str | None = field(default=None, metadata=OMIT_NONE)
     texture: str | None = field(default=None, metadata=OMIT_NONE)
+    #: the per-vertex shadowed transfer of a Lambertian mesh object (``relight.planning.shadows``)
+    transfer: str | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -166,6 +188,8 @@ class ObjectResult(Report):
     output_rows: int
     files: ObjectFiles = field(default_factory=ObjectFiles)
     irradiance_real_sh: dict[str, list[list[float]]] | None = field(default=None, metadata=OMIT_NONE)
+    #: what the shadowed transfer was computed with and its measured Monte Carlo errors (``relight.planning.shadows``)
+    shadows: dict[str, Any] | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -38,6 +38,7 @@ from relight.planning.report import (
     ScenePlan,
 )
 from relight.planning.scene import Scene
+from relight.planning.shadows import shadow_plan
 
 FloatArray = NDArray[np.float64]
 
@@ -146,15 +147,20 @@ def _plan_at(
             computations[ck].shared_by.append(obj.name)
             comps.append(computations[ck])
         viewer = viewer_of(obj, comps, epsilon)
+        shadows = shadow_plan(obj, comps, epsilon)
         worst = max(comps, key=lambda c: c.predicted.get("epsilon_min_of_errors", 0.0))
         objects.append(ObjectPlan(
             **obj.as_dict(), view_dependent=viewer.view_dependent, viewer=viewer.viewer, shrm=viewer.shrm,
             view_spread_deg=viewer.view_spread_deg, p_delta=viewer.p_delta,
             near_below_distance=viewer.near_below_distance, output_rows=s, computations=[c.id for c in comps],
-            predicted_error=ErrorSummary.of(worst.predicted), effects=effects(obj, comps, viewer, epsilon),
+            predicted_error=ErrorSummary.of(worst.predicted), effects=effects(obj, comps, viewer, epsilon, shadows),
+            shadows=shadows,
         ))
 
     pred = cal.predict(_features(choices, computations, objects, h, w, f_proj))
+    shadow_s = sum(o.shadows.predicted_seconds for o in objects if o.shadows is not None)
+    if shadow_s:  # ray casting is outside the cost model's features: its own rate (relight.visibility.predict)
+        pred = replace(pred, seconds=pred.seconds + shadow_s, stages={**pred.stages, "shadows": shadow_s})
     worst_obj = max(objects, key=lambda o: o.predicted_error.epsilon_min_of_errors or 0.0)
     report = ScenePlan(
         relight_version=__version__, scene=scene.name, environment=scene.environment, epsilon=epsilon,

@@ -243,10 +243,44 @@ def test_time_budget_picks_the_most_accurate_plan_that_fits() -> None:
 def test_every_object_lists_unsupported_effects() -> None:
     p = plan([obj("lambert+phong:s=32", "x")])
     effects = {e.effect: e for e in p.report.objects[0].effects}
-    for name in ("shadowing", "interreflection"):
-        assert effects[name].simulated is False and "not yet supported" in effects[name].reason
+    assert effects["interreflection"].simulated is False and "not yet supported" in effects["interreflection"].reason
+    assert effects["shadowing"].simulated is False and "convex" in effects["shadowing"].reason  # the sphere
     text = planning.format_plan(p)
-    assert "- shadowing: not simulated: not yet supported" in text and "projected once" in text
+    assert "- interreflection: not simulated: not yet supported" in text and "projected once" in text
+
+
+def test_lambertian_meshes_are_shadowed_and_glossy_shadows_stay_unsimulated() -> None:
+    """Issue 13 item 7: a Lambertian lobe on a mesh is shadowed by per-vertex transfer, the plan stating order, rays
+    and predicted Monte Carlo error (relight.planning.shadows); a glossy lobe's shadows stay unsimulated; running
+    the plan computes the transfer, whose per-vertex error estimate stays below the predicted i.i.d. bound."""
+    from relight.planning.shadows import unoccluded_norm
+
+    p = plan([obj("lambert:albedo=0.8", "chalk", shape="teapot"), obj("lambert:albedo=0.5+phong:s=32", "mixed",
+                                                                      shape="teapot"), obj("phong:s=32", "metal",
+                                                                                           shape="bunny")])
+    objs = {o.name: o for o in p.report.objects}
+    sh = objs["chalk"].shadows
+    assert sh is not None and sh.mesh == "teapot" and sh.order == 3 and sh.coefficients == 16
+    # the rays: the smallest power of two whose i.i.d. bound is within sqrt(epsilon) of |T_0| (epsilon = 0.01)
+    bound = lambda r: 4 * np.sqrt(2 / (3 * np.pi * r)) / unoccluded_norm(3)  # noqa: E731
+    assert bound(sh.rays) <= 0.1 < bound(sh.rays // 2) and sh.predicted_relative_error == pytest.approx(bound(sh.rays))
+    shadowed = [e for e in objs["chalk"].effects if e.effect.startswith("shadowing")]
+    assert [e.simulated for e in shadowed] == [True] and f"{sh.rays} rays" in shadowed[0].reason
+    assert "F = 3" in shadowed[0].reason and "Monte Carlo error" in shadowed[0].reason
+    mixed = {e.effect.split(":")[0]: e for e in objs["mixed"].effects if e.effect.startswith("shadowing")}
+    assert mixed["shadowing (diffuse"].simulated and not mixed["shadowing (glossy"].simulated
+    assert "glossy" in mixed["shadowing (glossy"].reason and "not yet supported" in mixed["shadowing (glossy"].reason
+    assert objs["metal"].shadows is None and not any(e.simulated for e in objs["metal"].effects
+                                                     if e.effect.startswith("shadowing"))
+    assert p.report.predicted_stages["shadows"] == pytest.approx(2 * sh.predicted_seconds)
+    assert json.loads(planning.plan_json(p))["objects"][0]["shadows"]["rays"] == sh.rays
+    run = planning.run_plan(p, write=False)
+    t = run.transfers["chalk"]
+    assert t.arrays["transfer"].shape == (529, 16)
+    assert t.manifest["monte_carlo_error_rms"]["transfer_error"] <= sh.predicted_monte_carlo_error
+    entry = {e.name: e for e in run.result.objects}
+    assert entry["chalk"].shadows is not None and entry["chalk"].shadows["rays"] == sh.rays
+    assert entry["metal"].shadows is None and "metal" not in run.transfers
 
 
 # ------------------------------------------------------------------------------------------------ accuracy
