@@ -101,7 +101,7 @@ class ObjectPlan(Report):
     predicted_error: ErrorSummary
     effects: list[Effect]
     #: the diffuse transfer the run computes (``relight.planning.shadows``), None without shadows
-    shadows: ShadowPlan | None = None
+    shadows: ShadowPlan | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -43,3 +43,22 @@ def test_a_run_round_trips_through_the_stored_json(tmp_path: Path) -> None:
     assert pub.result == result and pub.plan == plan.report
     # and back out as JSON: what the API sends parses into the same report again
     assert ScenePublic.model_validate_json(pub.model_dump_json()).result == result
+
+
+def test_a_shadowed_mesh_object_round_trips(tmp_path: Path) -> None:
+    """A Lambertian teapot: the plan's ShadowPlan and the run's shadows and transfer file survive the JSON."""
+    px = (0.5 + np.random.default_rng(4).random((16, 32, 3))).astype(np.float32)
+    scene = planning.scene_from_dict({"environment": "sky", "epsilon": 0.3, "size": 8, "objects": [
+        {"name": "pot", "shape": "teapot", "size": 1, "distance": 5, "material": "lambert:albedo=0.7"}]})
+    plan = planning.plan_scene(scene, px, calibration=costmodel.default_calibration())
+    assert plan.report.objects[0].shadows is not None
+    run = planning.run_plan(plan, tmp_path)
+    pot = run.result.objects[0]
+    assert pot.files.transfer == "pot.transfer.npz" and pot.shadows is not None
+    with np.load(tmp_path / pot.files.transfer) as npz:
+        assert npz["transfer"].shape == (529, 16) and npz["positions"].shape == (529, 3)
+    stored = json.loads((tmp_path / "result.json").read_text())
+    pub = ScenePublic(id="0" * 64, state="succeeded", scene={}, plan=plan.report.to_json(), result=stored,
+                      created_at=datetime.now(UTC))
+    assert pub.plan == plan.report and pub.result == run.result
+    assert ScenePublic.model_validate_json(pub.model_dump_json()).plan == plan.report
