@@ -1,12 +1,15 @@
 """Engine export commands of the ``relight`` CLI (engine-ready outputs issue, item 1).
 
     relight export ENVMAP --target three|filament|gltf|babylon --format ktx2 [--size 256] [--levels L]
-                   [--epsilon E] --out FILE.ktx2 [--json]
+                   [--epsilon E] [--sun extract|clamp=V|keep] --out FILE.ktx2 [--json]
         the target engine's prefiltered GGX cube chain (``relight.cube_chain``): one mip per roughness in the
         engine's own lod mapping, RGBA16F, OpenGL face order; FILE.ktx2 carries the per-level table under the
         ``relight.levels`` key and ``FILE.ktx2.json`` beside it holds the same table (roughness, method, orders,
         predicted error and App. B bound per level, seconds) for tools that do not read KTX2, and the map's SH9
-        in every engine convention (``relight.sh9``; also in the KTX2 under ``relight.sh9``).
+        in every engine convention (``relight.sh9``; also in the KTX2 under ``relight.sh9``). ``--sun``
+        (``relight.sun``): ``extract`` prefilters the map without its sun and records the sun as a directional
+        light (direction, RGB irradiance, illuminance, angular radius) under ``sun``; ``clamp=V`` limits every
+        pixel's luminance to V and records the removed energy fraction; ``keep`` (default) does neither.
 
     relight dfg [--size 128] [--multiscatter] --out FILE.exr|FILE.png
         the split-sum DFG table (``relight.dfg``; docs/conventions.md "DFG"): R, G = (A, B) or, multiscatter,
@@ -54,6 +57,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     from relight.errors import InputError
     from relight.ktx2 import write_ktx2
     from relight.sh9 import all_conventions
+    from relight.sun import apply_sun
 
     if args.format != "ktx2":
         raise InputError(f"--format {args.format!r} is not written yet; use ktx2")
@@ -61,19 +65,20 @@ def cmd_export(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise InputError(f"the folder of --out does not exist: {out.parent}")
     env = read_envmap(args.envmap)
-    chain = prefilter_chain(np.asarray(env.pixels, dtype=np.float64), target=args.target, size=args.size,
-                            levels=args.levels, epsilon=args.epsilon)
+    sun = apply_sun(np.asarray(env.pixels, dtype=np.float64), args.sun)
+    chain = prefilter_chain(sun.pixels, target=args.target, size=args.size, levels=args.levels,
+                            epsilon=args.epsilon)
     table = chain.summary()
     manifest: dict[str, Any] = {
         "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
         "lighting_order": chain.lighting_order, "face_order": ["+X", "-X", "+Y", "-Y", "+Z", "-Z"],
         "source": {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])},
         "levels": table, "seconds": chain.seconds, "relight_version": __version__,
-        "sh9": all_conventions(env.pixels),
+        "sh9": all_conventions(sun.pixels), "sun": sun.report,
     }
     data = write_ktx2([lv.faces for lv in chain.levels], {"levels": table, "target": chain.target,
                                                           "roughness_mapping": chain.mapping,
-                                                          "sh9": manifest["sh9"]},
+                                                          "sh9": manifest["sh9"], "sun": sun.report},
                       writer=f"relight {__version__}")
     _write_atomic(out, data)
     _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
@@ -152,6 +157,8 @@ def register(sub: Any) -> None:
     ex.add_argument("--levels", type=int, default=None, help="mip levels (default: down to 1 x 1)")
     ex.add_argument("--epsilon", type=float, default=2.5e-5,
                     help="uncaptured lobe energy per level (seed 000 §5.1); the default predicts 0.5 %% RMS")
+    ex.add_argument("--sun", default="keep", help="extract (a directional light + the residual), clamp=V (pixel "
+                    "luminance <= V, removed energy recorded) or keep (default)")
     ex.add_argument("--out", required=True)
     ex.add_argument("--json", action="store_true", help="print the manifest as JSON")
     ex.set_defaults(func=cmd_export)
