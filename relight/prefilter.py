@@ -16,7 +16,7 @@ normal N for a Lambertian lobe (albedo 1: outgoing radiance E(N)/pi).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -234,6 +234,10 @@ def prefilter_radial(
         timer.lap("cube_synthesis")
 
     orders = choice.report()
+    from relight.shrm.view_bands import radial_by_view  # issue 18: the same error for every view band
+
+    by_view = radial_by_view(lobe, lighting, f_b, window=None if window == "none" else window_factors(f_b, window))
+    timer.lap("prediction")
     report = PrefilterReport(
         center=str(lobe.center),
         brdf=lobe.spec(),
@@ -241,7 +245,7 @@ def prefilter_radial(
         order_requested=order,
         window=window,
         orders=orders,
-        predicted=orders.predicted(),
+        predicted=replace(orders.predicted(), by_view=by_view),
         ringing=Ringing(
             kernel_min=float(kernel_min.min()),
             lower_bound_rgb=[float(x) for x in ringing_floor],

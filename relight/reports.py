@@ -58,9 +58,31 @@ class Orders(Report):
 
 
 @dataclass(frozen=True, kw_only=True)
+class ViewBand(Report):
+    """The predicted error for views with ``ndotv[0] <= N.V <= ndotv[1]`` (``relight.shrm.view_bands``): ``rms``
+    the prediction (``rms_average``, the average over orientations of the lighting, times a margin for single
+    views), ``rms_appendix_b`` App. B's bound on that average, ``epsilon*`` the energies behind them and
+    ``epsilon_brdf`` the lobe's own uncaptured energy there. ``enforced``: the band lies above the grazing limit,
+    so the order search held ``epsilon_brdf`` to the tolerance there; ``met``: whether it did (both absent without
+    a tolerance)."""
+
+    ndotv: tuple[float, float]
+    rms: float
+    rms_appendix_b: float
+    rms_average: float
+    epsilon: float
+    epsilon_appendix_b: float
+    epsilon_brdf: float
+    enforced: bool | None = field(default=None, metadata=OMIT_NONE)
+    met: bool | None = field(default=None, metadata=OMIT_NONE)
+
+
+@dataclass(frozen=True, kw_only=True)
 class PredictedError(Report):
     """Predicted uncaptured energy fractions of the output and the relative RMS errors they mean
-    (``rms = sqrt(epsilon)``, ``relight.orders.rms_from_energy``): minimum of orders (§5.1) and App. B's bound."""
+    (``rms = sqrt(epsilon)``, ``relight.orders.rms_from_energy``): minimum of orders (§5.1) and App. B's bound;
+    ``by_view`` the same per view band (:class:`ViewBand`; N.V in [0, 0.3], [0.3, 0.7], [0.7, 1]) and
+    ``grazing_limit`` the smallest N.V the tolerance was held to (issue 18)."""
 
     epsilon_lighting: float | None = None
     epsilon_brdf: float | None = None
@@ -68,6 +90,8 @@ class PredictedError(Report):
     rms_min_of_errors: float | None = None
     epsilon_appendix_b: float | None = None
     rms_appendix_b: float | None = None
+    by_view: list[ViewBand] | None = field(default=None, metadata=OMIT_NONE)
+    grazing_limit: float | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -14,6 +14,9 @@ two ways, both from :data:`SETTINGS`:
   the channel, not a second one next to it.
 * :func:`limit_blas_threads` (called when :mod:`relight.sh` loads) limits the libraries loaded *before* relight
   (NumPy imported first) through threadpoolctl.
+
+``RELIGHT_GRAZING_LIMIT`` (default 0.1) is the smallest N.V at which an SHRM's ``epsilon`` must hold
+(``relight.shrm.order_search``; issue 18): views closer to grazing are reported, not enforced.
 """
 
 from __future__ import annotations
@@ -26,6 +29,10 @@ from relight.errors import InputError
 
 #: Environment variable of :attr:`CoreSettings.threads`.
 THREADS_VAR: Final = "RELIGHT_THREADS"
+#: Environment variable of :attr:`CoreSettings.grazing_limit`.
+GRAZING_VAR: Final = "RELIGHT_GRAZING_LIMIT"
+#: Default grazing limit: an SHRM's tolerance holds for every view with N.V >= 0.1 (issue 18; about 84 degrees).
+DEFAULT_GRAZING_LIMIT: Final = 0.1
 
 
 @dataclass(frozen=True)
@@ -33,6 +40,8 @@ class CoreSettings:
     """What the core reads from the environment (module docstring)."""
 
     threads: int = 1
+    #: ``--epsilon`` holds in every view band with N.V at least this (``relight.shrm.order_search``).
+    grazing_limit: float = DEFAULT_GRAZING_LIMIT
 
     @classmethod
     def from_env(cls, environ: dict[str, str] | None = None) -> CoreSettings:
@@ -44,7 +53,15 @@ class CoreSettings:
             threads = 0
         if threads < 1:
             raise InputError(f"{THREADS_VAR} must be a positive integer (threads of ducc0 and BLAS), got {raw!r}")
-        return cls(threads=threads)
+        raw_g = env.get(GRAZING_VAR, str(DEFAULT_GRAZING_LIMIT))
+        try:
+            grazing = float(raw_g)
+        except ValueError:
+            grazing = -1.0
+        if not 0.0 <= grazing < 1.0:
+            raise InputError(f"{GRAZING_VAR} must be a number in [0, 1) (the smallest N.V the tolerance holds for), "
+                             f"got {raw_g!r}")
+        return cls(threads=threads, grazing_limit=grazing)
 
 
 #: This process's settings.

@@ -7,8 +7,9 @@ Cheap by construction: it uses the lighting's SH power spectrum stored at upload
 * radially symmetric lobe -> one reflection map (``relight.prefilter.prefilter_radial``): F_rho from
   ``spectrum_for_tolerance``, ``F_B = min(F_rho, F_L, H - 1)`` (seed 000 §5.1), App. B bound as in
   ``relight.prefilter.choose_orders`` but from the stored band energies;
-* otherwise an SHRM (``relight.shrm.create_shrm``): per lobe ``lpq.cached_select_orders`` and
-  ``relight.shrm.predicted_errors``.
+* otherwise an SHRM (``relight.shrm.create_shrm``): per lobe the view-band order search
+  (``relight.shrm.order_search``, the tolerance held down to the grazing limit) and ``relight.shrm.predicted_errors``
+  with ``predicted.by_view`` (``relight.shrm.view_bands``; issue 18).
 
 Seconds: the calibrated cost model (``relight.costmodel``; never calibrating here: without a cached calibration the
 built-in constants, ``cost_model.calibrated = False``) for the computation, plus decoding the input and writing the
@@ -66,7 +67,7 @@ class ComponentPlan(Report):
     F_B: int
     P_B: int
     maps: int
-    predicted: dict[str, float]
+    predicted: dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -124,10 +125,10 @@ def uses_reflection_map(brdf: Any, params: Mapping[str, Any]) -> bool:
     return isinstance(brdf, RadialLobe) and not params.get("p_order")
 
 
-def _errors(d: Mapping[str, Any]) -> PredictedError:
+def _errors(d: Mapping[str, Any], by_view: Any = None, grazing_limit: float | None = None) -> PredictedError:
     return PredictedError(**{k: d.get(k) for k in (
         "epsilon_lighting", "epsilon_brdf", "epsilon_min_of_errors", "rms_min_of_errors", "epsilon_appendix_b",
-        "rms_appendix_b")})
+        "rms_appendix_b")}, by_view=by_view, grazing_limit=grazing_limit)
 
 
 @dataclass(frozen=True)
@@ -169,6 +170,9 @@ def _radial(lobe: Any, lighting: StoredLighting, h: int, w: int, params: Mapping
     )
     eps_min = min(eps_l, eps_rho)
     size = int(params.get("size") or size_for_order(f_b))
+    from relight.shrm.view_bands import radial_by_view
+
+    by_view = radial_by_view(lobe, lighting, f_b)
     feats = costmodel.radial_features(lobe, height=h, width=w, f_rho=f_rho, f_proj=min(f_rho, h - 1), f_b=f_b,
                                       size=size, explicit=eps is None)
     return _Planned(
@@ -179,48 +183,66 @@ def _radial(lobe: Any, lighting: StoredLighting, h: int, w: int, params: Mapping
         predicted_error=PredictedError(
             epsilon_lighting=eps_l, epsilon_brdf=eps_rho, epsilon_min_of_errors=eps_min,
             rms_min_of_errors=rms_from_energy(eps_min), epsilon_appendix_b=eps_b,
-            rms_appendix_b=rms_from_energy(eps_b),
+            rms_appendix_b=rms_from_energy(eps_b), by_view=by_view,
         ),
         size=size, components=[(f_b, 1)], component_plans=None, features=feats,
     )
 
 
 def _shrm(lobe_or_sum: Any, lighting: StoredLighting, h: int, w: int, params: Mapping[str, Any]) -> _Planned:
-    from relight.brdf import lpq
     from relight.orders import order_for_tolerance
     from relight.prefilter import size_for_order
-    from relight.shrm import brdf_lobes, predicted_errors, structure_of, terms_for
+    from relight.settings import SETTINGS
+    from relight.shrm import brdf_lobes, order_search, predicted_errors, structure_of, terms_for
+    from relight.shrm.creation import spectrum_order
+    from relight.shrm.view_bands import REPORT_BANDS, predicted_by_view
+    from relight.shrm.view_spectrum import band_edges
 
     eps, order, p_order = params.get("epsilon"), params.get("order"), params.get("p_order")
     if eps is None and order is None:
         raise ValueError("planning needs epsilon or order")
+    limit = float(params.get("grazing_limit") or SETTINGS.grazing_limit)
+    edges = band_edges(limit)
     f_cap = h - 1
     f_l = order_for_tolerance(lighting.band_energy(), lighting.total_energy, eps) if eps is not None else None
     comps: list[ComponentPlan] = []
+    views: list[Any] = []
     lobe_plans: list[costmodel.LobePlan] = []
     for lobe in brdf_lobes(lobe_or_sum):
         probes = None
+        structure, reason = structure_of(lobe)
         if order is not None:
             p = 0 if lobe.radially_symmetric else (p_order if p_order is not None else 0)
-            coeffs, _ = lpq.cached_coefficients(lobe, order, p)
+            spec = order_search.cached_spectrum(lobe, spectrum_order(int(order), f_cap), int(p), edges)
             f_rho, p_rho = int(order), int(p)
             f_b = min(f_rho, f_cap)
+            search: dict[str, Any] = {}
         else:
             assert eps is not None  # checked above: one of epsilon, order
-            sel, _ = lpq.cached_select_orders(lobe, float(eps))
-            coeffs, f_rho, p_rho = sel.coefficients, sel.F, sel.P
+            sel, _ = order_search.cached_search(lobe, float(eps), grazing_limit=limit, structure=structure,
+                                                size=params.get("size"))
+            spec, f_rho, p_rho = sel.spectrum, sel.F, sel.P
             f_b = min(f_rho, f_cap, f_l if f_l is not None else f_rho)
+            search = {k: v for k, v in sel.as_dict().items() if k in (
+                "tolerance_met", "grazing_limit", "extrapolated", "unmet_bands", "achievable_by_view")}
             if not lobe.radially_symmetric:  # the (F, P) the search tabulated, priced by the cost model
-                probes = tuple((int(q["F"]), int(q["P"])) for q in sel.history)
-        structure, reason = structure_of(lobe)
+                probes = tuple((int(q["F"]), int(q["P"])) for q in sel.probes)
         p_b = 0 if structure == "radial" else p_rho
-        errs = predicted_errors(coeffs, lighting, f_b, p_b)  # type: ignore[arg-type]  # duck-typed spectrum
+        f_pred = min(f_b, spec.F)  # beyond the search's tabulation (step 2 of order_search) the plan reads its F0
+        errs = predicted_errors(spec.coefficients(), lighting, f_pred, p_b)  # type: ignore[arg-type]
+        bands = predicted_by_view(spec, lighting, f_pred, p_b, bands=REPORT_BANDS)
+        fine = predicted_by_view(spec, lighting, f_pred, p_b, epsilon=eps, grazing_limit=limit)
+        views.append(bands)
         comps.append(ComponentPlan(kind=lobe.kind, center=str(lobe.center), structure=structure, reason=reason,
                                    F_rho=f_rho, F_B=f_b, P_B=p_b, maps=len(terms_for(structure, p_b)),
-                                   predicted=errs))
+                                   predicted={**errs, **search, "grazing_limit": limit,
+                                              "extrapolated_prediction": f_pred < f_b,
+                                              "by_view": [b.to_json() for b in bands],
+                                              "by_view_fine": [b.to_json() for b in fine]}))
         lobe_plans.append(costmodel.LobePlan(lobe=lobe, structure=structure, f_rho=f_rho, f_b=f_b, p_b=p_b,
                                              explicit=eps is None, probes=probes))
-    worst = max(comps, key=lambda c: c.predicted["epsilon_brdf"])
+    k_worst = max(range(len(comps)), key=lambda k: comps[k].predicted["epsilon_brdf"])
+    worst = comps[k_worst]
     size = int(params.get("size") or size_for_order(max(c.F_B for c in comps)))
     reasons = "; ".join(f"{c.kind} ({c.center}-centred): {c.reason}" for c in comps)
     f_proj = min(max(p.f_rho for p in lobe_plans), h - 1)
@@ -228,7 +250,7 @@ def _shrm(lobe_or_sum: Any, lighting: StoredLighting, h: int, w: int, params: Ma
         representation="shrm",
         reason=f"view-dependent BRDF, so an SHRM (seed 000 §4): {reasons}",
         orders=Orders(F_L=f_l, F_rho=worst.F_rho, F_B=max(c.F_B for c in comps), P_B=max(c.P_B for c in comps)),
-        predicted_error=_errors(worst.predicted),
+        predicted_error=_errors(worst.predicted, views[k_worst], limit),
         size=size, components=[(c.F_B, c.maps) for c in comps], component_plans=comps,
         features=costmodel.shrm_features(lobe_plans, height=h, width=w, f_proj=f_proj, size=size),
     )

@@ -19,6 +19,8 @@ from relight.conventions import (
 from relight.errors import InputError
 from relight.orders import order_for_tolerance, rms_from_energy, uncaptured
 from relight.prefilter import DEFAULT_EPSILON, LightingSpectrum, Timer, project_lighting, size_for_order
+from relight.settings import SETTINGS
+from relight.shrm import order_search
 from relight.shrm.basis import (
     Backend,
     structure_of,
@@ -26,6 +28,8 @@ from relight.shrm.basis import (
 )
 from relight.shrm.model import SHRM, SHRMComponent
 from relight.shrm.synthesis import synthesize_local
+from relight.shrm.view_bands import view_prediction
+from relight.shrm.view_spectrum import ViewSpectrum, band_edges
 
 
 # ------------------------------------------------------------------------------------------------ creation
@@ -98,7 +102,19 @@ def predicted_errors(
 
 
 #: Largest coefficient-map set create_shrm builds (float64, before any file is written).
-MAX_SHRM_BYTES = 4 * 2**30
+MAX_SHRM_BYTES = order_search.MAX_SHRM_BYTES
+
+
+#: The view spectrum of an SHRM reaches at least this order (or the map's H - 1): the prediction then reads the
+#: bands l > F_B from the lobe itself rather than from App. B's step (``relight.shrm.view_bands``); 96 costs
+#: about 0.3 s for a general lobe at P = 16.
+SPECTRUM_MIN_ORDER = 96
+
+
+def spectrum_order(f_order: int, f_cap: int) -> int:
+    """Order of the view spectrum tabulated for an SHRM at F: F plus half again (at least 16 more), and at least
+    ``min(H - 1, SPECTRUM_MIN_ORDER)``."""
+    return max(f_order + max(16, f_order // 2), min(f_cap, SPECTRUM_MIN_ORDER))
 
 
 def create_shrm(
@@ -110,15 +126,19 @@ def create_shrm(
     p_order: int | None = None,
     size: int | None = None,
     backend: Backend = "ducc0",
+    grazing_limit: float | None = None,
 ) -> SHRM:
     """Prefilter a lat-long environment map (H, W, 3) into an SHRM (seed 000 Fig. 3, App. C).
 
-    Per lobe: BRDF coefficients and orders (F_rho, P_rho) from ``epsilon`` (App. C order selection; default
-    0.01) or the explicit ``order`` F and ``p_order`` P (P from the default tolerance when only F is given);
-    lighting coefficients by pixel quadrature once, to the largest order needed; ``F_B = min(F_rho, F_L, H - 1)``
-    (minimum-of-orders rule, §5.1), ``P_B = P_rho``; ``B_lmpq = L_lm rho_hat_lpq`` (eq. 5, App. A) synthesised
-    into the local maps (App. C step 3). ``size`` is the output rows S (default S ~ 10 max F_B, §5.2). The report
-    says, per component, which structure and why, the orders, predicted errors and timings.
+    Per lobe: orders (F_rho, P_rho) from ``epsilon`` (default 0.01) held in every view band with N.V >=
+    ``grazing_limit`` (default ``relight.settings.SETTINGS.grazing_limit``, 0.1; ``relight.shrm.order_search``),
+    or the explicit ``order`` F and ``p_order`` P (P from the default tolerance when only F is given); the lobe's
+    view spectrum gives the coefficients ``rho_hat_lpq`` (``relight.shrm.view_spectrum``); lighting coefficients by
+    pixel quadrature once, to the largest order needed; ``F_B = min(F_rho, F_L, H - 1)`` (minimum-of-orders rule,
+    §5.1), ``P_B = P_rho``; ``B_lmpq = L_lm rho_hat_lpq`` (eq. 5, App. A) synthesised into the local maps (App. C
+    step 3). ``size`` is the output rows S (default S ~ 10 max F_B, §5.2). The report says, per component, which
+    structure and why, the orders, the predicted errors overall and per view band (``predicted.by_view``,
+    ``relight.shrm.view_bands``) and timings.
     """
     if epsilon is not None and (order is not None or p_order is not None):
         raise InputError("give either epsilon or explicit orders, not both")
@@ -132,33 +152,41 @@ def create_shrm(
         p_order = validate.at_least("order P", p_order, 0)
     if size is not None:
         size = validate.at_least("size", size, 2)
+    limit = SETTINGS.grazing_limit if grazing_limit is None else grazing_limit
+    limit = validate.in_range("grazing_limit", limit, 0.0, 1.0, hi_open=True)
     pixels = require_rgb_latlong(pixels)
     h, w = pixels.shape[:2]
     lobes = brdf_lobes(brdf)
     f_cap = h - 1
+    edges = band_edges(limit)
     timer = Timer()
 
-    chosen: list[tuple[Lobe, lpq.BRDFCoefficients, int, int, dict[str, Any]]] = []
+    chosen: list[tuple[Lobe, ViewSpectrum, int, int, dict[str, Any]]] = []
     for lobe in lobes:
+        structure = structure_of(lobe)[0]
         if order is not None:
             if lobe.radially_symmetric:
                 p = 0
             elif p_order is not None:
                 p = p_order
-            else:  # F alone: P from the default tolerance (App. C order selection)
-                p = lpq.cached_select_orders(lobe, DEFAULT_EPSILON)[0].P
+            else:  # F alone: P from the default tolerance (the view-band search)
+                p = order_search.cached_search(lobe, DEFAULT_EPSILON, grazing_limit=limit, structure=structure)[0].P
             f_req = min(order, f_cap)  # orders above the map's resolution are never used (F_B <= H - 1)
-            coeffs, cached = lpq.cached_coefficients(lobe, f_req, p)
-            sel: dict[str, Any] = {"F_rho": f_req, "P_rho": p, "explicit": True, "cached": cached}
-            chosen.append((lobe, coeffs, f_req, p, sel))
+            spec = order_search.cached_spectrum(lobe, spectrum_order(f_req, f_cap), p, edges)
+            sel: dict[str, Any] = {"F_rho": f_req, "P_rho": p, "explicit": True, "grazing_limit": limit}
+            chosen.append((lobe, spec, f_req, p, sel))
         else:
             assert epsilon is not None
-            res, cached = lpq.cached_select_orders(lobe, epsilon)
+            res, cached = order_search.cached_search(lobe, epsilon, grazing_limit=limit, structure=structure,
+                                                     size=size)
             sel = {**res.as_dict(), "cached": cached}
-            chosen.append((lobe, res.coefficients, res.F, res.P, sel))
+            spec = res.spectrum
+            if spec.F < res.F or spec.P < res.P:  # beyond the search's tabulation: tabulate at the orders found
+                spec = order_search.cached_spectrum(lobe, res.F, res.P, edges)
+            chosen.append((lobe, spec, res.F, res.P, sel))
     timer.lap("brdf_coefficients")
 
-    f_proj = min(max(f for _, _, f, _, _ in chosen), f_cap)
+    f_proj = min(max(max(f, sp.F) for _, sp, f, _, _ in chosen), f_cap)
     lighting = project_lighting(pixels, f_proj)
     timer.lap("lighting_projection")
     f_l = None
@@ -167,11 +195,11 @@ def create_shrm(
     timer.lap("order_selection")
 
     plans = []
-    for lobe, coeffs, f_rho, p_rho, sel in chosen:
+    for lobe, spec, f_rho, p_rho, sel in chosen:
         f_b = min(f_rho, f_cap) if order is not None else min(f_rho, f_cap, f_l if f_l is not None else f_rho)
         structure, reason = structure_of(lobe)
         p_b = 0 if structure == "radial" else p_rho
-        plans.append((lobe, coeffs, f_b, p_b, structure, reason, sel))
+        plans.append((lobe, spec, f_b, p_b, structure, reason, sel))
     s = size if size is not None else size_for_order(max(f for _, _, f, _, _, _, _ in plans))
     # Refuse plans whose coefficient maps cannot fit in memory (a sharp lobe at a tight tolerance can ask for
     # hundreds of S x 2S float64 maps): a clear error instead of an out-of-memory crash.
@@ -184,10 +212,15 @@ def create_shrm(
         )
 
     components = []
-    for lobe, coeffs, f_b, p_b, structure, reason, sel in plans:
+    for lobe, spec, f_b, p_b, structure, reason, sel in plans:
+        coeffs = spec.coefficients()
         rho = coeffs.rho[: f_b + 1, : p_b + 1, : min(coeffs.Q, p_b) + 1]
         terms = terms_for(structure, p_b)
         maps = synthesize_local(lighting.alm, lighting.lmax, rho, terms, s, backend=backend)
+        views = view_prediction(spec, lighting, f_b, p_b, epsilon=epsilon, grazing_limit=limit)
+        predicted = {**predicted_errors(coeffs, lighting, f_b, p_b), "grazing_limit": limit,
+                     "by_view": [b.to_json() for b in views.by_view],
+                     "by_view_fine": [b.to_json() for b in views.by_view_fine]}
         comp_report = {
             "center": lobe.center,
             "structure": structure,
@@ -196,7 +229,7 @@ def create_shrm(
             "orders": {"F_B": f_b, "P_B": p_b, "F_L": f_l, **{k: v for k, v in sel.items() if k != "probes"}},
             "probes": sel.get("probes", []),
             "n_maps": len(terms),
-            "predicted": predicted_errors(coeffs, lighting, f_b, p_b),
+            "predicted": predicted,
             "brdf_energy": float(coeffs.total_energy.max()),
         }
         components.append(

@@ -1,5 +1,12 @@
 """Evaluating an SHRM: reflection maps for a distant view (seed 000 eq. 12, §7.5), eq. 6 per point (near viewer),
 and CPU renders of a sphere.
+
+Negative radiance: a truncated expansion rings (Gibbs), most near grazing views and around point-like lamps, and
+can go below 0 where the true radiance is small (issue 18). Radiance is therefore clamped at 0 (``clamp=True``,
+the default; per colour). The cost is stated, not hidden: against any non-negative truth t,
+``|max(x, 0) - t| <= |x - t|``, so the clamp never increases a texel's error (the predicted errors of
+``relight.shrm.view_bands`` stay upper estimates); it adds energy, at most the error it removes. ``clamp=False``
+returns the raw expansion (the tests of the expansion itself use it).
 """
 
 from __future__ import annotations
@@ -31,13 +38,15 @@ from relight.shrm.model import SHRM, SHRMComponent
 
 
 # --------------------------------------------------------------------------------------------- evaluation
-def reflect(shrm: SHRM, view: NDArray[np.floating] | Sequence[float], *, size: int | None = None) -> FloatArray:
+def reflect(shrm: SHRM, view: NDArray[np.floating] | Sequence[float], *, size: int | None = None,
+            clamp: bool = True) -> FloatArray:
     """The reflection map for a distant view V (seed 000 eq. 12, §7.5), indexed by R, shape (S, 2S, 3).
 
     Each pixel holds the radiance reflected toward V by a surface whose reflection vector is that pixel's
     direction R (``docs/conventions.md``); its normal is ``N = normalize(R + V)``. R-centred components give their
     eq. 12 map directly (no resampling when ``size`` is the SHRM's); N- and T-centred components are looked up
-    bilinearly at N and T(N). The one direction R = -V (no normal) reads 0.
+    bilinearly at N and T(N). The one direction R = -V (no normal) reads 0. ``clamp``: negative radiance reads 0
+    (module docstring).
     """
     v = unit_view(view)
     s = shrm.height if size is None else validate.at_least("size", size, 1)
@@ -51,7 +60,8 @@ def reflect(shrm: SHRM, view: NDArray[np.floating] | Sequence[float], *, size: i
             continue
         c = lobe_centres(comp.center, n, r).reshape(-1, 3)
         out += sample_latlong(vm[None], c)[:, 0].reshape(s, 2 * s, 3)
-    return np.where(ok[..., None], out, 0.0)
+    out = np.where(ok[..., None], out, 0.0)
+    return np.maximum(out, 0.0) if clamp else out
 
 
 def sphere_geometry(view: FloatArray, size: int) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -82,6 +92,7 @@ def render_sphere(
     *,
     local: bool = False,
     background: NDArray[np.floating] | float = 0.0,
+    clamp: bool = True,
 ) -> FloatArray:
     """CPU render of a unit sphere with the SHRM (seed 000 §7.5), (size, size, 3).
 
@@ -90,27 +101,27 @@ def render_sphere(
     ``local=False``: the distant-viewer global SHRM, i.e. one eq. 12 map per frame sampled at C.
     ``local=True``: the local SHRM, eq. 6 per pixel: the maps ``Br_pq`` sampled at C, weighted by
     ``Yr_pq(theta_o, phi_o)`` of V in C's local frame (identical to the global path up to interpolation).
-    Pixels off the sphere get ``background``.
+    Pixels off the sphere get ``background``; ``clamp`` as in :func:`reflect`.
     """
     v = unit_view(view)
     validate.at_least("size", size, 1)
     n, mask = sphere_geometry(v, size)
     out = np.empty((size, size, 3))
     out[...] = np.asarray(background, dtype=np.float64)
-    out[mask] = shade(shrm, n[mask], v, local=local)
+    out[mask] = shade(shrm, n[mask], v, local=local, clamp=clamp)
     return out
 
 
 def shade(
     shrm: SHRM, normals: NDArray[np.floating], view: NDArray[np.floating], *, local: bool = False,
-    map_view: NDArray[np.floating] | None = None,
+    map_view: NDArray[np.floating] | None = None, clamp: bool = True,
 ) -> FloatArray:
     """Radiance (n, 3) leaving surface points with unit normals N (n, 3) toward V (unit; (3,) or per point
     (n, 3)), seed 000 §7.5: ``R = 2 (N.V) N - V`` and each component looked up bilinearly at its centre C.
 
     ``local=False`` (distant viewer): one eq. 12 map for ``map_view`` (default: ``view``, which must then be a
     single direction) sampled at C. ``local=True`` (near viewer): eq. 6 per point, the maps ``Br_pq`` sampled at C
-    and weighted by ``Yr_pq`` of the point's own V in C's local frame.
+    and weighted by ``Yr_pq`` of the point's own V in C's local frame. ``clamp`` as in :func:`reflect`.
     """
     nn = np.asarray(normals, dtype=np.float64)
     v = np.asarray(view, dtype=np.float64)
@@ -129,7 +140,7 @@ def shade(
         y = real_harmonics(comp.P, theta_o, phi_o)
         cols = [full_index(p, q) for p, q in comp.terms]
         acc += np.einsum("nkc,nk->nc", coeffs, y[:, cols])
-    return acc
+    return np.maximum(acc, 0.0) if clamp else acc
 
 
 def evaluate_local(comp: SHRMComponent, view: NDArray[np.floating] | Sequence[float]) -> FloatArray:

@@ -45,11 +45,12 @@ def view_grid(t_b: int) -> FloatArray:
     return np.stack(np.broadcast_arrays(st * np.cos(p), np.cos(t), st * np.sin(p)), axis=-1)
 
 
-def explicit_maps(shrm: SHRM, views: FloatArray) -> NDArray[np.float32]:
+def explicit_maps(shrm: SHRM, views: FloatArray, *, clamp: bool = True) -> NDArray[np.float32]:
     """Reflection maps (eq. 12) for many views at once (App. C "conversion to explicit forms"), (n, S, 2S, 3).
 
     Cabral's 12 maps: ``explicit_maps(shrm, icosahedron_views())``; a T_B x T_B set: ``view_grid(T_B)``. For
     R-centred general components the maps are one matrix product ``Yr(V_k) @ B~r`` (O(P^2) per output pixel).
+    ``clamp``: negative radiance reads 0, as in ``relight.shrm.reflect`` (``relight.shrm.evaluation``).
     """
     vs = np.asarray(views, dtype=np.float64).reshape(-1, 3)
     vs = vs / np.linalg.norm(vs, axis=1, keepdims=True)
@@ -66,9 +67,9 @@ def explicit_maps(shrm: SHRM, views: FloatArray) -> NDArray[np.float32]:
     r = latlong_dirs(s, 2 * s)
     for k, v in enumerate(vs):
         if rest.components:
-            out[k] += reflect(rest, v).astype(np.float32)
+            out[k] += reflect(rest, v, clamp=False).astype(np.float32)
         out[k][np.linalg.norm(r + v, axis=-1) <= 1e-9] = 0.0  # R = -V has no normal: 0, as in reflect()
-    return out
+    return np.maximum(out, np.float32(0.0)) if clamp else out
 
 
 def kautz_mccool_texture(comp: SHRMComponent, n_theta: int) -> NDArray[np.float32]:

@@ -109,7 +109,8 @@ class ShrmService:
         if await self.jobs.find(prep.job_id) is None:
             plan = await self.plans.plan_prepared(prep)
             predicted = Prediction(seconds=plan.predicted_seconds, rms_error=plan.predicted_error.rms_min_of_errors,
-                                   orders=plan.orders, representation=plan.representation).model_dump(mode="json")
+                                   orders=plan.orders, representation=plan.representation,
+                                   by_view=plan.predicted_error.by_view).model_dump(mode="json")
         return Submission(request, job_id=prep.job_id, predicted=predicted, intact=self._result_intact)
 
     async def submit(self, create: ShrmCreate) -> tuple[JobPublic, int]:

@@ -38,6 +38,7 @@ COMPUTATION_KEYS = {"id", "lobe", "kind", "center", "representation", "structure
 OBJECT_KEYS = {"name", "shape", "size", "distance", "material", "view", "view_dependent", "viewer", "shrm",
                "view_spread_deg", "p_delta", "near_below_distance", "output_rows", "computations", "predicted_error",
                "effects"}
+VIEW_KEYS = {"by_view", "grazing_limit"}  # left out of the JSON while None (relight.reports.OMIT_NONE)
 SUMMARY_KEYS = {"rms_min_of_errors", "rms_appendix_b", "epsilon_min_of_errors", "epsilon_appendix_b"}
 
 
@@ -48,20 +49,21 @@ def test_prefilter_report_keys_and_typed_fields() -> None:
     d = rep.to_json()
     json.dumps(d, allow_nan=False)
     assert set(d) == PREFILTER_KEYS
-    assert set(d["orders"]) == ORDER_KEYS | ERROR_KEYS and set(d["predicted"]) == ERROR_KEYS
+    assert set(d["orders"]) == ORDER_KEYS | ERROR_KEYS and set(d["predicted"]) == ERROR_KEYS | {"by_view"}
+    assert [b["ndotv"] for b in d["predicted"]["by_view"]] == [[0.0, 0.3], [0.3, 0.7], [0.7, 1.0]]
     assert set(d["ringing"]) == {"kernel_min", "lower_bound_rgb", "min_output_rgb"}
     assert set(d["output"]) == {"height", "width", "layout", "cube_size"} and set(d["input"]) == {"height", "width"}
     assert d["orders"]["F_B"] == rep.orders.F_B and d["output"]["height"] == rep.output.height == 16
     # rms = sqrt(epsilon) for an orthogonal truncation (relight.orders.rms_from_energy)
     assert rep.orders.epsilon_min_of_errors is not None
     assert rep.orders.rms_min_of_errors == pytest.approx(math.sqrt(rep.orders.epsilon_min_of_errors))
-    assert rep.predicted == rep.orders.predicted() and rep.orders.orders() == Orders(
+    assert dataclasses.replace(rep.predicted, by_view=None) == rep.orders.predicted() and rep.orders.orders() == Orders(
         F_L=rep.orders.F_L, F_rho=rep.orders.F_rho, F_B=rep.orders.F_B, P_B=0)
 
 
 def test_order_report_is_orders_then_errors() -> None:
     names = [f.name for f in dataclasses.fields(OrderReport)]
-    assert names[:4] == ["F_L", "F_rho", "F_B", "P_B"] and set(names[4:]) == ERROR_KEYS
+    assert names[:4] == ["F_L", "F_rho", "F_B", "P_B"] and set(names[4:]) == ERROR_KEYS | VIEW_KEYS
 
 
 def _info() -> dict[str, Any]:
@@ -81,7 +83,9 @@ def test_job_plan_keys(spec: dict[str, Any], params: dict[str, Any], extra: set[
     d = p.to_json()
     json.dumps(d, allow_nan=False)
     assert set(d) == JOB_KEYS | extra
-    assert set(d["orders"]) == ORDER_KEYS and set(d["predicted_error"]) == ERROR_KEYS
+    assert set(d["orders"]) == ORDER_KEYS and set(d["predicted_error"]) - VIEW_KEYS == ERROR_KEYS
+    assert [b["ndotv"] for b in d["predicted_error"]["by_view"]] == [[0.0, 0.3], [0.3, 0.7], [0.7, 1.0]]
+    assert all({"rms", "rms_appendix_b"} <= set(b) for b in d["predicted_error"]["by_view"])
     assert set(d["output"]) == {"height", "width", "layers", "bin_bytes", "exr_bytes_estimate"}
     assert set(d["cost_model"]) == {"calibrated", "key", "created", "compute_seconds", "io_seconds", "stages"}
     # the seconds are the cost model's computation plus the I/O terms, nothing else
@@ -98,6 +102,11 @@ def test_api_models_take_the_core_reports_field_for_field() -> None:
     p = planning.plan_job(_info(), {"kind": "phong", "s": 8.0}, {"epsilon": 0.01}, calibration=CAL)
     assert ApiOrders(**p.orders.to_json()).F_B == p.orders.F_B
     assert ApiPredictedError(**p.predicted_error.to_json()).rms_appendix_b == p.predicted_error.rms_appendix_b
+    wrapped = ApiPredictedError.from_core(p.predicted_error)
+    assert wrapped.by_view is not None and p.predicted_error.by_view is not None
+    assert [b.rms for b in wrapped.by_view] == [b.rms for b in p.predicted_error.by_view]
+    with pytest.raises(TypeError):
+        ApiOrders.from_core(p.predicted_error)
 
 
 def test_scene_plan_keys_in_both_modes() -> None:
