@@ -57,7 +57,8 @@ class Lighting(Protocol):
     @property
     def lmax(self) -> int: ...
 
-    total_energy: float
+    @property
+    def total_energy(self) -> float: ...
 
     def band_energy(self) -> NDArray[np.float64]: ...
 
