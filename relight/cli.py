@@ -196,6 +196,8 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     g.add_argument("--epsilon", type=float, help="the paper's tolerance: energy fraction not captured")
     g.add_argument("--order", help="explicit order F (or F,P for SHRMs)")
     pf.add_argument("--size", type=int, help="output rows S (S x 2S); default S ~ 10 F")
+    pf.add_argument("--grazing-limit", type=float, default=None,
+                    help="SHRMs: epsilon holds for views with N.V at least this (default 0.1, RELIGHT_GRAZING_LIMIT)")
     pf.add_argument("--out", required=True)
     pf.add_argument("--report", help="write the JSON report here")
     pf.set_defaults(func=cmd_prefilter)

@@ -42,6 +42,7 @@ def prefilter_shrm(
     args: argparse.Namespace, brdf: Any, env: Any, order: int | None, p_order: int | None
 ) -> int:
     """``relight prefilter`` for view-dependent BRDFs: write the SHRM EXR + manifest, print one summary line."""
+    from relight.reports import ShrmReport
     from relight.shrm import create_shrm
     from relight.shrm_io import sidecar_path, write_shrm
 
@@ -53,8 +54,10 @@ def prefilter_shrm(
         order=order,
         p_order=p_order,
         size=getattr(args, "size", None),
+        grazing_limit=getattr(args, "grazing_limit", None),
     )
-    shrm.report["input"].update(
+    assert isinstance(shrm.report, ShrmReport)
+    shrm.report.input.update(
         {
             "path": str(getattr(args, "envmap", "")),
             "negatives_clamped": getattr(env, "negatives_clamped", 0),
@@ -66,12 +69,19 @@ def prefilter_shrm(
     if report_path:
         Path(report_path).write_text(json.dumps(man, indent=2, sort_keys=True))
     orders = ", ".join(f"{c.center}:{c.structure} F={c.F} P={c.P}" for c in shrm.components)
-    pred = shrm.report["predicted"]
+    pred = shrm.report.predicted
+    rim = pred.by_view[0] if pred.by_view else None
+    unmet = [b for c in shrm.report.components for b in c.orders.get("unmet_bands", [])]
     print(
         f"wrote {args.out} (+ {sidecar_path(args.out).name}): SHRM {shrm.height}x{shrm.width}, "
-        f"{shrm.report['output']['maps']} maps [{orders}], predicted relative RMS {pred['rms_brdf']:.3g} "
-        f"(min of errors {pred['rms_min_of_errors']:.3g}), {shrm.report['total_seconds']:.3f} s"
+        f"{shrm.report.output['maps']} maps [{orders}], predicted relative RMS {pred.rms_brdf:.3g} "
+        f"(min of errors {pred.rms_min_of_errors:.3g}"
+        + (f"; N.V in {rim.ndotv[0]:g}-{rim.ndotv[1]:g}: {rim.rms:.3g}" if rim is not None else "")
+        + f"), {shrm.report.total_seconds:.3f} s"
     )
+    if unmet:
+        print(f"tolerance not met for N.V in {', '.join(f'[{a:g}, {b:g}]' for a, b in unmet)} within P <= 16 "
+              "(the report's orders.achievable_by_view says what can be reached)")
     return 0
 
 

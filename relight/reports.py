@@ -6,6 +6,9 @@ declaration order, nested reports converted, tuples as lists; a field declared w
 left out while it is None (a key present in only some reports, e.g. a plan's budget keys). The key sets are pinned by
 ``tests/relight/test_reports.py``: the CLI's ``--report`` JSON, the stored job results and the API are contracts.
 
+The SHRM report (:class:`ShrmReport`, :class:`ShrmComponentReport`, :class:`ShrmPredicted`) also reads as its JSON
+form (:class:`JsonView`) and is rebuilt from it when an SHRM is read from a file (``from_json``).
+
 Other reports: the scene plan (``relight.planning.report``), the job plan (``relight.planning.job``) and the
 accuracy-time sweep's points (``relight.tradeoff.points``).
 """
@@ -13,6 +16,7 @@ accuracy-time sweep's points (``relight.tradeoff.points``).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -148,3 +152,123 @@ class PrefilterReport(Report):
     total_seconds: float
     backend: str
     relight_version: str
+
+
+class JsonView(Report, Mapping[str, Any]):
+    """A report that also reads as its JSON form (``report["key"]``, ``.get``, ``**report``): the SHRM reports were
+    plain dicts, and their readers (the CLI, the worker, the cost model, the tradeoff sweep) keep working while they
+    move to the typed fields. Read-only: each access converts the report anew."""
+
+    def __getitem__(self, key: str) -> Any:
+        return self.to_json()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.to_json())
+
+    def __len__(self) -> int:
+        return len(self.to_json())
+
+
+def typed_or_plain(cls: type[Any], data: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``cls.from_json(data)`` when ``data`` holds every key of ``cls``'s JSON form that has no default (a report
+    ``create_shrm`` wrote), else ``data`` as a plain dict (hand-made or older manifests stay as they were, so a file
+    read and written again is the same file)."""
+    need = {f.name for f in dataclasses.fields(cls)
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+    if need <= set(data):
+        out: Mapping[str, Any] = cls.from_json(data)
+        return out
+    return dict(data)
+
+
+def _known(cls: type, data: Mapping[str, Any]) -> dict[str, Any]:
+    names = {f.name for f in dataclasses.fields(cls)}
+    return {k: v for k, v in data.items() if k in names}
+
+
+def _bands(data: Any) -> list[ViewBand] | None:
+    if data is None:
+        return None
+    return [ViewBand(**{**_known(ViewBand, b), "ndotv": tuple(b["ndotv"])}) for b in data]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShrmPredicted(PredictedError):
+    """The predicted errors of an SHRM component (``relight.shrm.creation.predicted_errors``) and per view band
+    (``relight.shrm.view_bands``): ``rms_brdf`` is the lobe's own relative RMS at the orders, ``by_view_fine`` the
+    0.1-wide bands beside the report bands of ``by_view``."""
+
+    rms_brdf: float | None = None
+    by_view_fine: list[ViewBand] | None = field(default=None, metadata=OMIT_NONE)
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ShrmPredicted:
+        """From the JSON form (a stored manifest; bands absent in files written before issue 18)."""
+        d = _known(cls, data)
+        d["by_view"], d["by_view_fine"] = _bands(data.get("by_view")), _bands(data.get("by_view_fine"))
+        return cls(**d)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShrmComponentReport(JsonView):
+    """One lobe of an SHRM: its centre, structure and why, the lobe, the orders (``F_B``, ``P_B``, ``F_L`` and what
+    the order search said: ``F_rho``, ``P_rho``, ``tolerance_met``, ``unmet_bands``, ``achievable_by_view``, ... or
+    ``explicit``), the search's probes, the maps, the predicted errors and the lobe's energy."""
+
+    center: str
+    structure: str
+    reason: str
+    lobe: dict[str, Any]
+    orders: dict[str, Any]
+    probes: list[Any] = field(default_factory=list)
+    n_maps: int
+    predicted: ShrmPredicted
+    brdf_energy: float
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ShrmComponentReport:
+        d = _known(cls, data)
+        d.setdefault("center", "R")
+        d.setdefault("structure", "general")
+        d.setdefault("reason", "")
+        d.setdefault("lobe", {})
+        d.setdefault("orders", {})
+        d.setdefault("n_maps", 0)
+        d.setdefault("brdf_energy", 0.0)
+        d["predicted"] = ShrmPredicted.from_json(data.get("predicted") or {})
+        return cls(**d)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShrmReport(JsonView):
+    """What ``relight.shrm.create_shrm`` did: the material, the tolerance (or orders) asked for and the grazing limit
+    it held to, one :class:`ShrmComponentReport` per lobe, ``predicted`` (the component whose lobe misses the most
+    energy: its relative errors bound the material's, whose other lobes only add signal), input and output shapes,
+    seconds per stage. ``input`` holds the map's ``height`` and ``width``; callers add where it came from."""
+
+    representation: str = "shrm"
+    layout: str = "local"
+    brdf: dict[str, Any] | None
+    epsilon: float | None
+    order_requested: list[int | None] | None
+    grazing_limit: float | None = field(default=None, metadata=OMIT_NONE)
+    components: list[ShrmComponentReport]
+    predicted: ShrmPredicted
+    input: dict[str, Any] = field(default_factory=dict)
+    output: dict[str, Any] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
+    total_seconds: float = 0.0
+    backend: str = "ducc0"
+    relight_version: str = ""
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ShrmReport:
+        """From the JSON form (``relight.shrm_io.read_shrm``'s manifest); missing keys get their defaults."""
+        d = _known(cls, data)
+        d.setdefault("brdf", None)
+        d.setdefault("epsilon", None)
+        d.setdefault("order_requested", None)
+        d["components"] = [c if isinstance(c, ShrmComponentReport) else ShrmComponentReport.from_json(c)
+                           for c in data.get("components") or []]
+        d["predicted"] = ShrmPredicted.from_json(data.get("predicted") or {})
+        return cls(**d)

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from relight import __version__
 from relight.envmap.exr import read_exr_layers, write_exr_layers
 from relight.errors import InputError
+from relight.reports import Report, ShrmComponentReport, ShrmReport, typed_or_plain
 from relight.shrm import SHRM, Y00, SHRMComponent, terms_for
 
 FORMAT = "relight-shrm"
@@ -54,7 +55,10 @@ def layer_name(component: int, p: int, q: int) -> str:
 
 
 def _jsonable(obj: Any) -> Any:
-    """Plain-JSON copy: numpy scalars and arrays become Python numbers and lists, tuples lists."""
+    """Plain-JSON copy: typed reports their JSON form (``relight.reports``), numpy scalars and arrays become Python
+    numbers and lists, tuples lists."""
+    if isinstance(obj, Report):
+        return _jsonable(obj.to_json())
     if isinstance(obj, dict):
         return {str(k): _jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -176,7 +180,8 @@ def read_shrm(path: str | os.PathLike[str], *, max_pixels: int | None = None) ->
             comps.append(
                 SHRMComponent(
                     center=str(c["center"]), structure=structure, F=int(c["F"]), P=int(c["P"]), terms=terms,
-                    maps=arr, lobe=dict(c.get("lobe") or {}), report=dict(c.get("report") or {}),
+                    maps=arr, lobe=dict(c.get("lobe") or {}),
+                    report=typed_or_plain(ShrmComponentReport, c.get("report") or {}),
                 )
             )
     except (KeyError, TypeError, ValueError) as exc:
@@ -185,6 +190,5 @@ def read_shrm(path: str | os.PathLike[str], *, max_pixels: int | None = None) ->
         raise InputError(f"{path}: malformed SHRM manifest ({exc!r})") from None
     if not comps:
         raise InputError(f"{path}: the SHRM manifest lists no components")
-    report = dict(man.get("report") or {})
-    report["components"] = [c.report for c in comps]
+    report = typed_or_plain(ShrmReport, {**dict(man.get("report") or {}), "components": [c.report for c in comps]})
     return SHRM(components=comps, brdf=man.get("brdf"), report=report)

@@ -19,6 +19,7 @@ from relight.conventions import (
 from relight.errors import InputError
 from relight.orders import order_for_tolerance, rms_from_energy, uncaptured
 from relight.prefilter import DEFAULT_EPSILON, LightingSpectrum, Timer, project_lighting, size_for_order
+from relight.reports import ShrmComponentReport, ShrmPredicted, ShrmReport
 from relight.settings import SETTINGS
 from relight.shrm import order_search
 from relight.shrm.basis import (
@@ -218,20 +219,19 @@ def create_shrm(
         terms = terms_for(structure, p_b)
         maps = synthesize_local(lighting.alm, lighting.lmax, rho, terms, s, backend=backend)
         views = view_prediction(spec, lighting, f_b, p_b, epsilon=epsilon, grazing_limit=limit)
-        predicted = {**predicted_errors(coeffs, lighting, f_b, p_b), "grazing_limit": limit,
-                     "by_view": [b.to_json() for b in views.by_view],
-                     "by_view_fine": [b.to_json() for b in views.by_view_fine]}
-        comp_report = {
-            "center": lobe.center,
-            "structure": structure,
-            "reason": reason,
-            "lobe": lobe.spec(),
-            "orders": {"F_B": f_b, "P_B": p_b, "F_L": f_l, **{k: v for k, v in sel.items() if k != "probes"}},
-            "probes": sel.get("probes", []),
-            "n_maps": len(terms),
-            "predicted": predicted,
-            "brdf_energy": float(coeffs.total_energy.max()),
-        }
+        predicted = ShrmPredicted(**predicted_errors(coeffs, lighting, f_b, p_b), grazing_limit=limit,
+                                  by_view=views.by_view, by_view_fine=views.by_view_fine)
+        comp_report = ShrmComponentReport(
+            center=str(lobe.center),
+            structure=structure,
+            reason=reason,
+            lobe=lobe.spec(),
+            orders={"F_B": f_b, "P_B": p_b, "F_L": f_l, **{k: v for k, v in sel.items() if k != "probes"}},
+            probes=list(sel.get("probes", [])),
+            n_maps=len(terms),
+            predicted=predicted,
+            brdf_energy=float(coeffs.total_energy.max()),
+        )
         components.append(
             SHRMComponent(
                 center=str(lobe.center), structure=structure, F=f_b, P=p_b, terms=terms, maps=maps,
@@ -240,20 +240,22 @@ def create_shrm(
         )
     timer.lap("synthesis")
 
-    worst = max(components, key=lambda c: c.report["predicted"]["epsilon_brdf"])
-    report: dict[str, Any] = {
-        "representation": "shrm",
-        "layout": "local",
-        "brdf": _spec(brdf),
-        "epsilon": epsilon,
-        "order_requested": None if order is None else [order, p_order],
-        "components": [c.report for c in components],
-        "predicted": dict(worst.report["predicted"]),
-        "input": {"height": h, "width": w},
-        "output": {"height": s, "width": 2 * s, "layout": "latlong", "maps": sum(len(c.terms) for c in components)},
-        "timings": dict(timer.seconds),
-        "total_seconds": float(sum(timer.seconds.values())),
-        "backend": backend,
-        "relight_version": __version__,
-    }
-    return SHRM(components=components, brdf=report["brdf"], report=report)
+    reports = [c.report for c in components]
+    assert all(isinstance(r, ShrmComponentReport) for r in reports)
+    typed = [r for r in reports if isinstance(r, ShrmComponentReport)]
+    worst = max(typed, key=lambda r: r.predicted.epsilon_brdf or 0.0)
+    report = ShrmReport(
+        brdf=_spec(brdf),
+        epsilon=epsilon,
+        order_requested=None if order is None else [order, p_order],
+        grazing_limit=limit,
+        components=typed,
+        predicted=worst.predicted,
+        input={"height": h, "width": w},
+        output={"height": s, "width": 2 * s, "layout": "latlong", "maps": sum(len(c.terms) for c in components)},
+        timings=dict(timer.seconds),
+        total_seconds=float(sum(timer.seconds.values())),
+        backend=backend,
+        relight_version=__version__,
+    )
+    return SHRM(components=components, brdf=report.brdf, report=report)

@@ -4,6 +4,7 @@ and a material's SHRM (components sharing one grid, with the report); eq. 12 per
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,8 +35,9 @@ class SHRMComponent:
     """One lobe's SHRM: local maps ``Br_pq`` on a lat-long grid indexed by the lobe's centre direction.
 
     ``maps[k]`` (rows, 2 rows, 3) holds the term ``terms[k] = (p, q)`` (module docstring: local frame, real basis).
-    ``report`` carries orders, predicted errors and the reason for the structure. The global maps (eq. 8) are
-    cached on first use: replace ``maps`` only before evaluating.
+    ``report`` carries orders, predicted errors and the reason for the structure
+    (``relight.reports.ShrmComponentReport`` from ``create_shrm`` and ``read_shrm``; a plain mapping elsewhere).
+    The global maps (eq. 8) are cached on first use: replace ``maps`` only before evaluating.
     """
 
     center: str
@@ -45,7 +47,7 @@ class SHRMComponent:
     terms: list[tuple[int, int]]
     maps: FloatArray
     lobe: dict[str, Any]
-    report: dict[str, Any] = field(default_factory=dict)
+    report: Mapping[str, Any] = field(default_factory=dict)
     _global: FloatArray | None = field(default=None, repr=False)
 
     @property
@@ -88,7 +90,7 @@ class SHRM:
 
     components: list[SHRMComponent]
     brdf: dict[str, Any] | None = None
-    report: dict[str, Any] = field(default_factory=dict)
+    report: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def height(self) -> int:

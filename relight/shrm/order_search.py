@@ -20,7 +20,7 @@ Coarse to fine, one tabulation:
    (F <= ``f_cap``, P <= ``p_cap``) and the 4 GiB guard of ``relight.shrm.creation``.
 4. When no (F, P) within the caps meets some band, the search says so before anything is computed: which bands,
    and the smallest ``epsilon_b`` each can reach within the caps (``achievable``); it then returns the orders that
-   reach 1.25 times those figures (or the tolerance where it is met) at the least cost.
+   reach twice those figures (and the tolerance in every other band) at the least cost.
 
 Searches are cached per lobe, tolerance, limit and caps (``cached_search``) and the spectra per lobe and orders.
 """
@@ -48,8 +48,10 @@ F_CAP = 1024
 P_CAP = 16
 #: Largest coefficient-map set an SHRM may need (``relight.shrm.creation.MAX_SHRM_BYTES``; float64 RGB maps).
 MAX_SHRM_BYTES = 4 * 2**30
-#: Margin on the achievable figures when a band cannot meet the tolerance (step 4).
-ACHIEVABLE_MARGIN = 1.25
+#: Margin on the achievable figures when a band cannot meet the tolerance (step 4): twice the smallest figure a
+#: band can reach within the caps is reached at a moderate F (the extrapolated tail falls to the floor as 1 / F),
+#: where 1.25 times it drove F to the caps for little gain.
+ACHIEVABLE_MARGIN = 2.0
 
 
 def starting_order(lobe: Lobe) -> int:

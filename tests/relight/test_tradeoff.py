@@ -83,7 +83,9 @@ def test_angular_predicted_error_is_exact_for_a_uniform_environment() -> None:
 
 def test_view_dependent_sweep() -> None:
     view = (0.3, 0.5, 0.8)
-    res = tradeoff.sweep(env("sunset", 16), Microfacet(0.4), epsilons=(0.1, 0.01), truncations=(0.1,), size=8,
+    # 32 rows: on 16 the tighter tolerance's orders reach F_B = H - 1, where the pixel quadrature of the lighting
+    # no longer matches the angular reference's pixels and the measured error grows again
+    res = tradeoff.sweep(env("sunset", 32), Microfacet(0.4), epsilons=(0.3, 0.1), truncations=(0.1,), size=8,
                          view=view, calibration=CAL)
     freq = [p for p in res.points if p.method == "frequency"]
     assert res.meta["representation"] == "shrm"

@@ -63,7 +63,7 @@ def test_shrm_outputs_are_finite_for_finite_maps(px: np.ndarray, lobe: Any, view
     for comp in sm.components:
         assert np.all(np.isfinite(comp.maps))
     assert np.all(np.isfinite(reflect(sm, view)))
-    strict_json(sm.report)
+    strict_json(sm.report.to_json())  # type: ignore[attr-defined]  # create_shrm: a relight.reports.ShrmReport
 
 
 # ------------------------------------------------------------------------------------------------ rejections
@@ -127,8 +127,11 @@ def test_bad_prefilter_parameters_are_input_errors(kwargs: dict[str, Any], fragm
 def test_orders_beyond_the_map_do_not_cost_beyond_it(monkeypatch: pytest.MonkeyPatch) -> None:
     """An explicit order above what the map resolves is capped at F_B = H - 1; the BRDF coefficients must not be
     computed to the requested order (order = 2000 on an 8-row map took 6.5 s in radial_transfer, 10^6 exhausts
-    memory). Checked by recording the orders the coefficient routines are asked for."""
+    memory). Checked by recording the orders the coefficient routines are asked for. (An SHRM's view spectrum,
+    relight.shrm.view_spectrum, reaches a bounded spectrum_order(H - 1) beyond it for the prediction.)"""
     from relight.brdf import coefficients, lpq
+    from relight.shrm import order_search, view_spectrum
+    from relight.shrm.creation import spectrum_order
 
     asked: list[int] = []
     real_radial = coefficients.radial_transfer
@@ -142,9 +145,17 @@ def test_orders_beyond_the_map_do_not_cost_beyond_it(monkeypatch: pytest.MonkeyP
         asked.append(f_order)
         return real_lpq(lobe, min(f_order, 64), p_order, **kw)
 
+    real_view = view_spectrum.view_spectrum
+
+    def per_view(lobe: Any, f_order: int, p_order: int, **kw: Any) -> Any:
+        asked.append(f_order if f_order <= spectrum_order(7, 7) else 10**6)
+        return real_view(lobe, min(f_order, 64), p_order, **kw)
+
     monkeypatch.setattr("relight.prefilter.radial_transfer", radial)
     monkeypatch.setattr(lpq, "brdf_coefficients", general)
+    monkeypatch.setattr(order_search, "view_spectrum", per_view)
     lpq.clear_cache()
+    order_search.clear_cache()
     px = np.ones((8, 16, 3))
     too_far = {}
     for name, call in (("prefilter_radial", lambda: prefilter_radial(px, Phong(8.0), order=2000, size=8)),
@@ -154,7 +165,8 @@ def test_orders_beyond_the_map_do_not_cost_beyond_it(monkeypatch: pytest.MonkeyP
             call()
         except InputError:
             continue  # rejecting the order is fine too
-        if max(asked) > 8:
+        if max(asked) > spectrum_order(7, 7):
             too_far[name] = max(asked)
     lpq.clear_cache()
+    order_search.clear_cache()
     assert not too_far, f"coefficients computed to these orders for an 8-row map: {too_far}"
