@@ -224,7 +224,9 @@ class ViewBand(CoreReport):
     epsilon_appendix_b: float
     epsilon_brdf: float = Field(description="the lobe's own uncaptured energy in the band")
     enforced: bool | None = Field(None, description="the band lies above the grazing limit: the tolerance holds")
-    met: bool | None = None
+    met: bool | None = Field(None, description="the orders meet the tolerance in the band")
+    achievable_epsilon_brdf: float | None = Field(None, description="the smallest epsilon_brdf the band can reach "
+                                                  "within the caps (F <= 1024, P <= 16)")
 
 
 class PredictedError(CoreReport):

@@ -68,7 +68,8 @@ class ViewBand(Report):
     views), ``rms_appendix_b`` App. B's bound on that average, ``epsilon*`` the energies behind them and
     ``epsilon_brdf`` the lobe's own uncaptured energy there. ``enforced``: the band lies above the grazing limit,
     so the order search held ``epsilon_brdf`` to the tolerance there; ``met``: whether it did (both absent without
-    a tolerance)."""
+    a tolerance); ``achievable_epsilon_brdf``: the smallest ``epsilon_brdf`` the band can reach within the caps
+    (F <= 1024, P <= 16, 4 GiB), when the order search ran."""
 
     ndotv: tuple[float, float]
     rms: float
@@ -79,6 +80,7 @@ class ViewBand(Report):
     epsilon_brdf: float
     enforced: bool | None = field(default=None, metadata=OMIT_NONE)
     met: bool | None = field(default=None, metadata=OMIT_NONE)
+    achievable_epsilon_brdf: float | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -195,7 +195,7 @@ def _shrm(lobe_or_sum: Any, lighting: StoredLighting, h: int, w: int, params: Ma
     from relight.settings import SETTINGS
     from relight.shrm import brdf_lobes, order_search, predicted_errors, structure_of, terms_for
     from relight.shrm.creation import spectrum_order
-    from relight.shrm.view_bands import REPORT_BANDS, predicted_by_view
+    from relight.shrm.view_bands import view_prediction
     from relight.shrm.view_spectrum import band_edges
 
     eps, order, p_order = params.get("epsilon"), params.get("order"), params.get("p_order")
@@ -217,6 +217,7 @@ def _shrm(lobe_or_sum: Any, lighting: StoredLighting, h: int, w: int, params: Ma
             f_rho, p_rho = int(order), int(p)
             f_b = min(f_rho, f_cap)
             search: dict[str, Any] = {}
+            achievable = None
         else:
             assert eps is not None  # checked above: one of epsilon, order
             sel, _ = order_search.cached_search(lobe, float(eps), grazing_limit=limit, structure=structure,
@@ -225,13 +226,15 @@ def _shrm(lobe_or_sum: Any, lighting: StoredLighting, h: int, w: int, params: Ma
             f_b = min(f_rho, f_cap, f_l if f_l is not None else f_rho)
             search = {k: v for k, v in sel.as_dict().items() if k in (
                 "tolerance_met", "grazing_limit", "extrapolated", "unmet_bands", "achievable_by_view")}
+            achievable = sel.achievable
             if not lobe.radially_symmetric:  # the (F, P) the search tabulated, priced by the cost model
                 probes = tuple((int(q["F"]), int(q["P"])) for q in sel.probes)
         p_b = 0 if structure == "radial" else p_rho
         f_pred = min(f_b, spec.F)  # beyond the search's tabulation (step 2 of order_search) the plan reads its F0
         errs = predicted_errors(spec.coefficients(), lighting, f_pred, p_b)  # type: ignore[arg-type]
-        bands = predicted_by_view(spec, lighting, f_pred, p_b, bands=REPORT_BANDS)
-        fine = predicted_by_view(spec, lighting, f_pred, p_b, epsilon=eps, grazing_limit=limit)
+        vp = view_prediction(spec, lighting, f_pred, p_b, epsilon=eps, grazing_limit=limit,
+                             achievable=achievable)
+        bands, fine = vp.by_view, vp.by_view_fine
         views.append(bands)
         comps.append(ComponentPlan(kind=lobe.kind, center=str(lobe.center), structure=structure, reason=reason,
                                    F_rho=f_rho, F_B=f_b, P_B=p_b, maps=len(terms_for(structure, p_b)),

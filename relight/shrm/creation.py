@@ -163,6 +163,7 @@ def create_shrm(
     timer = Timer()
 
     chosen: list[tuple[Lobe, ViewSpectrum, int, int, dict[str, Any]]] = []
+    achievable: dict[int, tuple[float, ...]] = {}
     for lobe in lobes:
         structure = structure_of(lobe)[0]
         if order is not None:
@@ -181,6 +182,7 @@ def create_shrm(
             res, cached = order_search.cached_search(lobe, epsilon, grazing_limit=limit, structure=structure,
                                                      size=size)
             sel = {**res.as_dict(), "cached": cached}
+            achievable[len(chosen)] = res.achievable
             spec = res.spectrum
             if spec.F < res.F or spec.P < res.P:  # beyond the search's tabulation: tabulate at the orders found
                 spec = order_search.cached_spectrum(lobe, res.F, res.P, edges)
@@ -213,12 +215,13 @@ def create_shrm(
         )
 
     components = []
-    for lobe, spec, f_b, p_b, structure, reason, sel in plans:
+    for k, (lobe, spec, f_b, p_b, structure, reason, sel) in enumerate(plans):
         coeffs = spec.coefficients()
         rho = coeffs.rho[: f_b + 1, : p_b + 1, : min(coeffs.Q, p_b) + 1]
         terms = terms_for(structure, p_b)
         maps = synthesize_local(lighting.alm, lighting.lmax, rho, terms, s, backend=backend)
-        views = view_prediction(spec, lighting, f_b, p_b, epsilon=epsilon, grazing_limit=limit)
+        views = view_prediction(spec, lighting, f_b, p_b, epsilon=epsilon, grazing_limit=limit,
+                                achievable=achievable.get(k))
         predicted = ShrmPredicted(**predicted_errors(coeffs, lighting, f_b, p_b), grazing_limit=limit,
                                   by_view=views.by_view, by_view_fine=views.by_view_fine)
         comp_report = ShrmComponentReport(

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -157,10 +157,25 @@ class ViewPrediction(Report):
 
 
 def view_prediction(spec: ViewSpectrum, lighting: Lighting, f_b: int, p_b: int, *, epsilon: float | None = None,
-                    grazing_limit: float | None = None) -> ViewPrediction:
-    """Both band lists of :func:`predicted_by_view`."""
+                    grazing_limit: float | None = None,
+                    achievable: Sequence[float] | None = None) -> ViewPrediction:
+    """Both band lists of :func:`predicted_by_view`. With a tolerance, a report band is ``enforced`` when one of its
+    fine bands is, and ``met`` when all its enforced fine bands are; ``achievable`` (per fine band, from the order
+    search) gives ``achievable_epsilon_brdf`` to the enforced bands (a report band: the largest of its own)."""
     fine = predicted_by_view(spec, lighting, f_b, p_b, epsilon=epsilon, grazing_limit=grazing_limit)
+    if achievable is not None:
+        fine = [replace(b, achievable_epsilon_brdf=float(a)) if b.enforced else b
+                for b, a in zip(fine, achievable, strict=True)]
     coarse = predicted_by_view(spec, lighting, f_b, p_b, bands=REPORT_BANDS)
+    if epsilon is not None:
+        out = []
+        for band in coarse:
+            inner = [b for b in fine if b.ndotv[0] >= band.ndotv[0] - 1e-9 and b.ndotv[1] <= band.ndotv[1] + 1e-9
+                     and b.enforced]
+            ach = [b.achievable_epsilon_brdf for b in inner if b.achievable_epsilon_brdf is not None]
+            out.append(replace(band, enforced=bool(inner), met=all(b.met for b in inner) if inner else None,
+                               achievable_epsilon_brdf=max(ach) if ach else None))
+        coarse = out
     return ViewPrediction(by_view=coarse, by_view_fine=fine, grazing_limit=grazing_limit)
 
 

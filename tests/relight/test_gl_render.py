@@ -117,7 +117,8 @@ def shade_cpu(model: shrm.SHRM, frame: str, normals: np.ndarray, views: np.ndarr
 
     The lobe centre C of every component is looked up bilinearly (relight.conventions.sample_latlong) and weighted by
     ``Yr_pq`` of V in C's local frame (local maps) or of V's world angles (global maps). ``distant`` adds the
-    rounding of the distant path's global layers (one view for all pixels).
+    rounding of the distant path's global layers (one view for all pixels). The value is clamped at 0 as the
+    shader and relight.shrm.shade clamp radiance (issue 18); the clamp only shrinks differences.
     """
     value = np.zeros(normals.shape)
     bound = np.zeros(normals.shape)
@@ -137,7 +138,7 @@ def shade_cpu(model: shrm.SHRM, frame: str, normals: np.ndarray, views: np.ndarr
         bound += np.einsum("nkc,nk->nc", HALF_EPS * mag + FILTER_STEP * rng, np.abs(y))
         if distant and comp.P > 0:
             bound += band_bound(comp, c, views[0])
-    return value, SLACK * bound + 1e-6
+    return np.maximum(value, 0.0), SLACK * bound + 1e-6
 
 
 def perspective_rays(view: np.ndarray, size: int, distance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

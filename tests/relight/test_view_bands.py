@@ -164,3 +164,21 @@ def test_report_carries_by_view_and_no_negative_radiance() -> None:
     assert clamped.min() >= 0.0
     ref = reference_view(px, lobe, v, 16)
     assert np.all(np.abs(clamped - ref) <= np.abs(raw - ref) + 1e-12)
+
+
+def test_plan_names_the_band_that_cannot_be_met() -> None:
+    """POST /plan's core (plan_job) for Torrance–Sparrow alpha = 0.2 at epsilon = 0.01: predicted_error.by_view says,
+    before anything is computed, that N.V in [0, 0.3] cannot meet it (and what it can reach) while [0.7, 1] does."""
+    from relight import costmodel, planning
+    from relight.prefilter import project_lighting
+
+    px = _map("courtyard", 32)
+    lig = project_lighting(px, 31)
+    info = {"height": 32, "width": 64, "sh_power_spectrum": lig.band_energy().tolist(),
+            "total_energy": lig.total_energy}
+    plan = planning.plan_job(info, {"kind": "torrance-sparrow", "alpha": 0.2}, {"epsilon": 0.01},
+                             calibration=costmodel.default_calibration())
+    rim, mid, top = plan.to_json()["predicted_error"]["by_view"]
+    assert rim["enforced"] and rim["met"] is False and rim["achievable_epsilon_brdf"] > 0.01
+    assert top["enforced"] and top["met"] is True and top["epsilon_brdf"] <= 0.01
+    assert mid["rms"] > top["rms"] > 0.0

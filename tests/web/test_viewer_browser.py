@@ -102,6 +102,7 @@ def test_request_shrm_progress_and_canvas_matches_cpu(page: Any, viewer_server: 
     upload_map(page, tmp_path)
     page.select_option("#brdf-kind", "phong")
     assert re.search(r"orders\s*F_B = \d+", plan_text(page))
+    assert re.search(r"error by view\s*N·V 0–0.3: [\d.]+ %", plan_text(page)), plan_text(page)  # issue 18
     shrm_id = compute(page)
     seen = page.evaluate("window.relight.progressLog")
     assert any(state == "running" and 0 < p < 1 for state, p in seen), f"no progress shown while running: {seen}"

@@ -7,6 +7,9 @@
 // the depth written is the hit point's, so spheres and meshes of a scene occlude each other exactly);
 // OUTPUT_LINEAR (write radiance, e.g. to a float target) instead of the display transform (tonemap.glsl).
 //
+// Radiance is clamped at 0 per colour, as relight.shrm.shade does (a truncated SHRM rings below 0 near grazing
+// views and point-like lamps; against a non-negative truth the clamp never increases the error; issue 18).
+//
 // V is the unit vector from the surface toward the viewer: the pixel's own (perspective) or the camera's
 // direction (orthographic). R = 2 (N.V) N - V is computed per pixel. The environment rotated by an angle a
 // about +Y is looked up at rotate_y(d, -a): u_env_rotation holds (cos(-a), sin(-a)).
@@ -73,6 +76,7 @@ void main() {
 #else
     vec3 color = texture(u_environment, latlong_uv(r_env)).rgb;
 #endif
+    color = max(color, vec3(0.0));
 #ifdef OUTPUT_LINEAR
     o_color = vec4(color, 1.0);
 #else

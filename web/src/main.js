@@ -162,6 +162,8 @@ function showPlan(plan) {
     ['orders', `F_B = ${o.F_B}, P_B = ${o.P_B}`],
     ['predicted time', fmtSeconds(plan.predicted_seconds)],
     ['predicted error', `${fmtPercent(e.rms_min_of_errors)} RMS (bound ${fmtPercent(e.rms_appendix_b)})`],
+    ...(e.by_view ? [['error by view', e.by_view.map((b) => `N·V ${b.ndotv[0]}–${b.ndotv[1]}: ${fmtPercent(b.rms)}`)
+      .join(', ')]] : []),
     ['output', `${plan.output.height} × ${plan.output.width} × ${plan.output.layers} layers`],
     ['cached', plan.cached ? 'yes — appears instantly' : 'no'],
   ];
