@@ -96,25 +96,74 @@ class ExrChannel:
 
 
 @dataclass(frozen=True)
+class ExrPart:
+    """One part's header: size, type and the pixels the decoder allocates for it (all levels of a tiled part)."""
+
+    width: int
+    height: int
+    part_type: str
+    decoded_pixels: int
+
+
+@dataclass(frozen=True)
 class ExrInfo:
     image: ImageHeader
     channels: tuple[ExrChannel, ...]
     part_type: str
+    parts: tuple[ExrPart, ...] = ()
+
+
+#: Parts read from a multi-part header at most (each costs a header walk; real files have a handful).
+MAX_PARTS: Final = 64
+#: Level modes of the ``tiledesc`` attribute (File Layout, "tiledesc"): pixels of all levels over level 0's, an
+#: upper bound (mip-maps sum to 4/3 of level 0, rip-maps to 4; rounding levels up adds at most a row and a column
+#: per level, covered by the factor 2 for mip-maps).
+_LEVEL_FACTOR: Final = {0: 1, 1: 2, 2: 4}
 
 
 def parse_header(buf: bytes) -> ExrInfo:
-    """Parse the magic, version and the first part's header (OpenEXR File Layout, components 1-3).
+    """Parse the magic, the version and every part's header (OpenEXR File Layout, components 1-3).
 
-    Raises :class:`NeedMoreData` when ``buf`` ends inside the header, :class:`InputError` for a corrupt one.
+    The decoder (``OpenEXR.File``) reads *every* part and every level of a tiled part, so the returned image
+    header carries part 0's size and, as ``decoded_pixels``, the pixels of all parts and levels together: a
+    16 x 8 part 0 cannot hide an 8192 x 4096 part 1. Deep parts (anywhere in the file) and more than
+    :data:`MAX_PARTS` parts are refused here. Raises :class:`NeedMoreData` when ``buf`` ends inside the headers,
+    :class:`InputError` for a corrupt one.
     """
     cur = _Cursor(buf, 4)
     version = cur.i32()
     if version & 0xFF != 2:
         raise InputError(f"unsupported EXR version {version & 0xFF} (only version 2 exists)")
     multipart = bool(version & 0x1000)
-    part_type = "deepscanline" if version & 0x800 else "tiledimage" if version & 0x200 else "scanlineimage"
+    single_type = "deepscanline" if version & 0x800 else "tiledimage" if version & 0x200 else "scanlineimage"
+    parts: list[tuple[ExrPart, tuple[ExrChannel, ...]]] = []
+    while True:
+        if multipart and cur.take(1) == b"\0":  # an empty header ends the list
+            break
+        if multipart:
+            cur.pos -= 1
+        parts.append(_part_header(cur, len(parts), None if multipart else single_type))
+        if not multipart:
+            break
+        if len(parts) > MAX_PARTS:
+            raise InputError(f"EXR file has more than {MAX_PARTS} parts")
+    if not parts:
+        raise InputError("corrupt EXR header: a multi-part file with no part")
+    first, channels = parts[0]
+    bits = max(32 if c.pixel_type != 1 else 16 for c in channels)
+    total = sum(p.decoded_pixels for p, _ in parts)
+    image = ImageHeader("exr", first.width, first.height, len(channels), bits,
+                        decoded_pixels=total if total > first.width * first.height else 0)
+    return ExrInfo(image, channels, first.part_type, tuple(p for p, _ in parts))
+
+
+def _part_header(cur: _Cursor, index: int, part_type: str | None) -> tuple[ExrPart, tuple[ExrChannel, ...]]:
+    """One header: attributes up to the terminating null byte. ``part_type`` comes from the version field for
+    single-part files, from the ``type`` attribute otherwise."""
     channels: tuple[ExrChannel, ...] | None = None
     window: tuple[int, int, int, int] | None = None
+    level_mode = 0
+    where = f"part {index}" if part_type is None else "the header"
     while True:
         name = cur.cstr()
         if not name:
@@ -129,20 +178,26 @@ def parse_header(buf: bytes) -> ExrInfo:
         elif name == b"dataWindow" and type_name == b"box2i" and size == 16:
             xmin, ymin, xmax, ymax = struct.unpack("<4i", value)
             window = (xmin, ymin, xmax, ymax)
-        elif name == b"type" and type_name == b"string" and multipart:
+        elif name == b"type" and type_name == b"string" and part_type is None:
             part_type = value.decode("latin-1")
+        elif name == b"tiles" and type_name == b"tiledesc" and size == 9:
+            level_mode = value[8] & 0x0F
     if channels is None or window is None:
         missing = "channels" if channels is None else "dataWindow"
-        raise InputError(f"corrupt EXR header: the required attribute {missing!r} is missing")
+        raise InputError(f"corrupt EXR header: the required attribute {missing!r} is missing in {where}")
+    part_type = part_type or "scanlineimage"
+    if part_type.startswith("deep"):
+        raise InputError(f"deep EXR images are not supported ({where} is {part_type})")
     xmin, ymin, xmax, ymax = window
     width, height = xmax - xmin + 1, ymax - ymin + 1
     if width <= 0 or height <= 0:
-        raise InputError(f"empty EXR image: data window {window} is {max(width, 0)} x {max(height, 0)}")
+        raise InputError(f"empty EXR image: data window {window} of {where} is {max(width, 0)} x {max(height, 0)}")
     if not channels:
-        raise InputError("EXR image has no channels")
-    bits = max(32 if c.pixel_type != 1 else 16 for c in channels)
-    image = ImageHeader("exr", width, height, len(channels), bits)
-    return ExrInfo(image, channels, part_type)
+        raise InputError(f"EXR image has no channels in {where}")
+    if level_mode not in _LEVEL_FACTOR:
+        raise InputError(f"corrupt EXR header: level mode {level_mode} of {where}")
+    decoded = width * height * _LEVEL_FACTOR[level_mode if part_type.startswith("tiled") else 0]
+    return ExrPart(width, height, part_type, decoded), channels
 
 
 def _chlist(value: bytes) -> tuple[ExrChannel, ...]:
@@ -169,14 +224,24 @@ def _chlist(value: bytes) -> tuple[ExrChannel, ...]:
 # Decoding
 
 
+def _decode_error(exc: Exception) -> str:
+    """What went wrong, in words: the bindings report a damaged chunk by printing it and handing back a file with
+    no parts (the ``IndexError`` of ``parts[0]``), and undecodable header text as ``UnicodeDecodeError``."""
+    if isinstance(exc, IndexError):
+        return ("corrupt or truncated EXR pixel data: the decoder could not read the image's chunks (a damaged chunk "
+                "table, chunk header or compressed block)")
+    if isinstance(exc, UnicodeDecodeError):
+        return "corrupt EXR header: an attribute's text is not valid UTF-8"
+    first = (str(exc).splitlines() or [""])[0]
+    return f"cannot decode EXR file ({type(exc).__name__}){': ' + first if first else ''}"
+
+
 def _open(buf: bytes) -> tuple[ExrInfo, dict[str, NDArray[Any]], dict[str, Any]]:
     """Read part 0 of a whole EXR file: the parsed header, channel arrays by name and the bindings' header dict."""
     try:
         info = parse_header(buf)
     except NeedMoreData:
         raise InputError(f"truncated EXR file: the header ends after {len(buf)} bytes") from None
-    if info.part_type.startswith("deep"):
-        raise InputError(f"deep EXR images ({info.part_type}) are not supported")
     for ch in info.channels:
         if ch.x_sampling != 1 or ch.y_sampling != 1:
             raise InputError(f"subsampled EXR channel {ch.name!r} ({ch.x_sampling} x {ch.y_sampling}) is not "
@@ -188,7 +253,7 @@ def _open(buf: bytes) -> tuple[ExrInfo, dict[str, NDArray[Any]], dict[str, Any]]
             pixels = {name: np.asarray(ch.pixels) for name, ch in part.channels.items()}
             header = dict(part.header)
     except Exception as exc:
-        raise InputError(f"cannot decode EXR file: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
+        raise InputError(_decode_error(exc)) from exc
     shape = (info.image.height, info.image.width)
     for name, arr in pixels.items():
         if arr.shape != shape:

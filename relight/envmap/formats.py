@@ -56,10 +56,17 @@ class ImageHeader:
     height: int
     channels: int  # channels stored in the file (EXR: all channels of part 0)
     bit_depth: int = 8  # bits per channel (EXR: 16 or 32; HDR: 8-bit mantissas with a shared exponent)
+    #: Pixels the decoder allocates (EXR: every part and every level of a tiled part); 0: just this image's.
+    decoded_pixels: int = 0
 
     @property
     def pixels(self) -> int:
         return self.width * self.height
+
+    @property
+    def allocated_pixels(self) -> int:
+        """The pixels decoding allocates: this image's, or more (EXR parts and levels)."""
+        return max(self.pixels, self.decoded_pixels)
 
 
 def check_max_pixels(hdr: ImageHeader, max_pixels: int | None) -> None:
@@ -68,6 +75,9 @@ def check_max_pixels(hdr: ImageHeader, max_pixels: int | None) -> None:
     if hdr.pixels > limit:
         raise InputError(f"image is {hdr.width} x {hdr.height} = {hdr.pixels} pixels, more than the limit of "
                          f"{limit} pixels")
+    if hdr.allocated_pixels > limit:
+        raise InputError(f"the file's parts and levels hold {hdr.allocated_pixels} pixels in all (the first image is "
+                         f"{hdr.width} x {hdr.height}), more than the limit of {limit} pixels: every part is decoded")
 
 
 def read_all(src: Source) -> bytes:

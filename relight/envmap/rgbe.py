@@ -128,19 +128,16 @@ def parse_header(buf: bytes, *, complete: bool = True) -> HdrHeader:
 def decode(buf: bytes, header: HdrHeader | None = None) -> NDArray[np.float32]:
     """Decode a whole Radiance file to an (H, W, 3) float32 array of linear RGB.
 
-    The run-length structure is walked once per packet in Python (an RLE stream is inherently sequential);
-    the bytes themselves are moved by one vectorised gather at the end.
+    The run-length structure is walked once per packet in Python (an RLE stream is inherently sequential), each
+    packet copied straight into the planar output: memory is the output's, whatever the packets (the worst case,
+    packets of one byte, once needed a gather plan of 60 bytes per pixel); flat scanlines are moved by one
+    vectorised gather at the end.
     """
     hdr = header if header is not None else parse_header(buf)
     width, height = hdr.width, hdr.height
     n = len(buf)
     rle_ok = _MINELEN <= width <= _MAXELEN
-    # Gather plan: every output byte (planar layout: scanline, component, column) copies one input byte.
-    # Packets are (output start, source start, length, is_run); flat scanlines are collected separately.
-    out_starts: list[int] = []
-    src_starts: list[int] = []
-    lengths: list[int] = []
-    is_run: list[bool] = []
+    planar_bytes = bytearray(height * 4 * width)  # (scanline, component, column)
     flat_rows: list[int] = []
     flat_srcs: list[int] = []
     p = hdr.data_offset
@@ -160,25 +157,15 @@ def decode(buf: bytes, header: HdrHeader | None = None) -> NDArray[np.float32]:
                 if p >= n:
                     raise InputError(f"truncated Radiance HDR data at scanline {y} of {height}")
                 c = buf[p]
-                if c > 128:
-                    count = c - 128
-                    src = p + 1
-                    p += 2
-                    run = True
-                else:
-                    count = c
-                    src = p + 1
-                    p += 1 + c
-                    run = False
+                count = c - 128 if c > 128 else c
                 if count == 0 or (o % width) + count > width:
                     raise InputError(f"bad Radiance RLE data in scanline {y}: a packet of {count} bytes "
                                      f"at column {o % width} overruns the width {width}")
-                if p > n:
+                end = p + 2 if c > 128 else p + 1 + c
+                if end > n:
                     raise InputError(f"truncated Radiance HDR data at scanline {y} of {height}")
-                out_starts.append(o)
-                src_starts.append(src)
-                lengths.append(count)
-                is_run.append(run)
+                planar_bytes[o:o + count] = buf[p + 1:p + 2] * count if c > 128 else buf[p + 1:end]
+                p = end
                 o += count
         else:
             if p + row_bytes > n:
@@ -187,15 +174,7 @@ def decode(buf: bytes, header: HdrHeader | None = None) -> NDArray[np.float32]:
             flat_srcs.append(p)
             p += row_bytes
     data = np.frombuffer(buf, dtype=np.uint8)
-    planar = np.empty((height, 4, width), dtype=np.uint8)
-    if lengths:
-        ln = np.asarray(lengths, dtype=np.int64)
-        total = int(ln.sum())
-        seg = np.repeat(np.arange(ln.size), ln)
-        within = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(ln) - ln, ln)
-        src = np.asarray(src_starts, dtype=np.int64)[seg] + within * ~np.asarray(is_run)[seg]
-        dst = np.asarray(out_starts, dtype=np.int64)[seg] + within
-        planar.reshape(-1)[dst] = data[src]
+    planar = np.frombuffer(planar_bytes, dtype=np.uint8).reshape(height, 4, width)
     if flat_rows:
         fs = np.asarray(flat_srcs, dtype=np.int64)[:, None] + np.arange(row_bytes)
         flat = data[fs].reshape(len(flat_rows), width, 4)

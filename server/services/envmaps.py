@@ -24,7 +24,7 @@ from distributed.scheduler import KilledWorker
 from sqlalchemy import select
 
 from relight.contract.models import EnvmapPublic
-from relight.envmap.formats import ACCEPTED, sniff
+from relight.envmap.formats import ACCEPTED, check_max_pixels, sniff
 from relight.envmap.formats import SNIFF_BYTES as _SNIFF_BYTES
 from relight.errors import InputError
 from relight.server.cluster import Cluster
@@ -154,6 +154,10 @@ class EnvmapService:
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
         check_header_size(header.width, header.height, self.settings.max_pixels)
+        try:
+            check_max_pixels(header, self.settings.max_pixels)  # every part and level the decoder would allocate
+        except InputError as exc:
+            raise Unprocessable(str(exc)) from None
         existing = await in_thread(self._get_row, digest)
         if existing is not None and self.store.has(digest):
             writer.abort()

@@ -150,3 +150,45 @@ def test_truncated_exr() -> None:
         E.read_envmap(data[: len(data) // 2])
     with pytest.raises(InputError, match="truncated EXR"):
         E.probe(data[:100])
+
+
+def _two_part_exr(small: tuple[int, int], big: tuple[int, int]) -> bytes:
+    """A real multi-part file (the bindings write it): part 0 small, part 1 big, zeros (ZIP makes it tiny)."""
+    window = (np.array([0, 0], np.int32), np.array([big[1] - 1, big[0] - 1], np.int32))
+    parts = []
+    for name, (h, w) in (("small", small), ("big", big)):
+        z = np.zeros((h, w), np.float16)
+        parts.append(OpenEXR.Part({"type": OpenEXR.scanlineimage, "compression": OpenEXR.ZIP_COMPRESSION,
+                                   "displayWindow": window}, {"R": z, "G": z, "B": z}, name))
+    buf = io.BytesIO()
+    with OpenEXR.File(parts) as f:
+        f.write(buf)
+    return buf.getvalue()
+
+
+def test_every_part_counts_against_the_pixel_limit() -> None:
+    """Issue 12: a 16 x 8 part 0 hid an 8192 x 4096 part 1 (the decoder reads every part). The header walk sums
+    every part, the refusal comes before decoding and says why."""
+    data = _two_part_exr((8, 16), (1024, 2048))
+    hdr = E.probe(data)
+    assert (hdr.width, hdr.height) == (16, 8)
+    assert hdr.allocated_pixels == 16 * 8 + 2048 * 1024
+    with pytest.raises(InputError, match=r"parts and levels hold 2097280 pixels.*every part is decoded"):
+        E.read_exr_layers(data, max_pixels=512 * 1024)
+    with pytest.raises(InputError, match="every part"):
+        E.read_envmap(data, max_pixels=512 * 1024)
+    layers, _ = E.read_exr_layers(data, max_pixels=4 << 20)  # within the limit: part 0, as before
+    assert layers[""].shape == (8, 16, 3)
+
+
+def test_corrupt_chunk_message_says_what_is_wrong() -> None:
+    """The bindings print the reason and hand back a file without parts: the message was "IndexError: list index
+    out of range"; it now names the damaged pixel data."""
+    a = np.random.default_rng(5).random((16, 32)).astype(np.float32)
+    good = exr_bytes({"R": a, "G": a, "B": a})
+    bad = bytearray(good)
+    bad[len(bad) // 2: len(bad) // 2 + 64] = bytes(range(64))  # inside the chunks, past the header
+    with pytest.raises(InputError) as info:
+        E.read_image(bytes(bad))
+    assert "IndexError" not in str(info.value)
+    assert "corrupt or truncated EXR pixel data" in str(info.value)

@@ -88,3 +88,30 @@ def test_hdr_bad_files() -> None:
         E.read_image(b"#?RADIANCE\n\n-Y 1 +X 8\n" + bytes([2, 2, 0, 8, 128 + 9, 1]) + bytes(40))
     with pytest.raises(InputError, match="non-finite"):
         E.write_hdr("unused.hdr", np.full((2, 4, 3), np.nan))
+
+
+def worst_case_rle(width: int, height: int, value: int = 128) -> bytes:
+    """A valid RLE file whose every packet is a one-byte literal (2 input bytes per output byte): the most packets
+    a file of this size can have. Every texel decodes to RGBE (value, value, value, value)."""
+    head = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (height, width)
+    row = bytes([2, 2, width >> 8, width & 255]) + bytes([1, value]) * (4 * width)
+    return head + row * height
+
+
+def test_worst_case_rle_decodes_within_the_outputs_memory() -> None:
+    """Issue 12: at the pixel limit such a file killed both workers (the gather plan held ~60 bytes per texel in
+    Python lists). Decoding now writes each packet into the output: the traced peak stays under 40 bytes per
+    texel (planar RGBE 4 + float32 RGB 12 + NumPy's float temporaries of rgbe_to_float, 12 each), independent of
+    the packet count. The values are checked against the closed form (RGBE 128: mantissa 128.5/256 * 2^0)."""
+    import tracemalloc
+
+    width, height = 256, 64  # 65536 packets: tracemalloc makes each Python step slow
+    data = worst_case_rle(width, height)
+    tracemalloc.start()
+    try:
+        rgb = E.rgbe.decode(data)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 40 * width * height, peak / (width * height)
+    np.testing.assert_array_equal(rgb, np.full((height, width, 3), (128 + 0.5) / 256.0, np.float32))
