@@ -1,7 +1,11 @@
 """The Dask side of the server: an embedded ``LocalCluster`` or a connection to an existing scheduler.
 
 Embedded (no ``RELIGHT_SCHEDULER``): worker *processes* bound to 127.0.0.1, no dashboards, each with a memory
-limit; the scheduler lives in the server process. Scale-out: ``RELIGHT_SCHEDULER=tcp://host:8786`` connects to
+limit; the scheduler lives in the server process. Whoever can talk to a Dask scheduler can run code in the cluster,
+so the embedded one speaks TLS with temporary certificates that exist only in the server's memory and its workers'
+(``security=True``: Dask's ``Security.temporary``); its address is not published (``/health``), and the HTTP
+servers Dask starts even with dashboards off are stopped (the scheduler's here, the workers' in
+:mod:`relight.worker.preload`). Scale-out: ``RELIGHT_SCHEDULER=tcp://host:8786`` connects to
 a running scheduler whose workers were started with ``relight worker --scheduler ...``.
 
 Every function submitted is a task function of ``relight.worker`` (:meth:`Cluster.submit` refuses anything else):
@@ -68,8 +72,10 @@ class Cluster:
                     worker_dashboard_address=None,
                     memory_limit=s.worker_memory_limit,
                     preload=["relight.worker.preload"],
+                    security=True,  # temporary TLS certificates, in memory: no other process can join or submit
                     asynchronous=True,
                 )
+            self.local.scheduler.http_server.stop()  # Dask starts it even without a dashboard
             client = Client
             self._client = await client(self.local, asynchronous=True)
         log.info("Dask scheduler %s", self.address)

@@ -6,8 +6,10 @@ validation errors add ``errors`` (one entry per offending field, with its locati
 
 from __future__ import annotations
 
+import errno
 import logging
 import math
+import secrets
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -26,7 +28,7 @@ TYPE_PREFIX = "urn:relight:problem:"
 _TITLES = {400: "Bad Request", 401: "Unauthorized", 403: "Forbidden", 404: "Not Found", 405: "Method Not Allowed",
            406: "Not Acceptable", 409: "Conflict", 413: "Content Too Large", 415: "Unsupported Media Type",
            422: "Unprocessable Content", 429: "Too Many Requests", 500: "Internal Server Error",
-           503: "Service Unavailable", 504: "Gateway Timeout"}
+           503: "Service Unavailable", 504: "Gateway Timeout", 507: "Insufficient Storage"}
 
 
 class ProblemError(Exception):
@@ -144,8 +146,16 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
-        log.exception("unhandled error on %s %s", request.method, request.url.path)
-        return problem_response(500, "internal-error", f"{type(exc).__name__}: {exc}", instance=request.url.path)
+        """Nothing of the exception reaches the client (its text may hold server paths, SQL, addresses): a
+        reference to the log line instead. A full disk is 507, with the same reticence."""
+        incident = secrets.token_hex(6)
+        if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            log.error("storage full on %s %s [%s]: %s", request.method, request.url.path, incident, exc)
+            return problem_response(507, "insufficient-storage", f"the server's storage is full; nothing was stored "
+                                    f"(incident {incident})", instance=request.url.path, incident=incident)
+        log.exception("unhandled error on %s %s [%s]", request.method, request.url.path, incident)
+        return problem_response(500, "internal-error", f"internal error (incident {incident}: the server's log has "
+                                "the details)", instance=request.url.path, incident=incident)
 
 
 #: ``responses=`` for route decorators: documents problem bodies in the OpenAPI schema.
