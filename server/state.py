@@ -29,6 +29,7 @@ from relight.server.services.visibility import VisibilityService
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import TOPIC
 from relight.worker.sandbox import SandboxPool
+from relight.worker.store_check import clean_tmp
 
 log = logging.getLogger("relight.server")
 
@@ -69,6 +70,9 @@ class Services:
         if migrated:
             log.warning("moved %d jobs of the previous schema into the job table", migrated)
         store = BlobStore(settings.resolved_blob_dir, memory_bytes=settings.blob_cache_bytes)
+        removed = await in_thread(clean_tmp, store)  # left-overs of interrupted writes
+        if removed:
+            log.warning("removed %d left-over temporary files from the blob store", removed)
         cluster = Cluster(settings)
         await cluster.start()
         hub, metrics = EventHub(), Metrics()

@@ -11,7 +11,8 @@ are not fsync'ed: after a power cut a blob may be torn, which verification detec
 Reads are verified: the bytes are hashed and compared with the name. A mismatch raises :class:`BlobCorrupt`
 and the caller recomputes; a corrupt blob is never returned. Hashing a large blob on every read would cap the
 throughput of cached downloads, so a process remembers which files it has verified, keyed by the file's
-inode, size and modification time: a file that changes on disk after verification is hashed again.
+inode, size, modification time and inode-change time (ctime: every write moves it and no call can set it back):
+a file that changes on disk after verification is hashed again, even when size and mtime are restored.
 """
 
 from __future__ import annotations
@@ -104,14 +105,14 @@ class BlobStore:
     def __init__(self, root: str | os.PathLike[str], *, memory_bytes: int = 0) -> None:
         self.root = Path(root).resolve()
         self.memory_bytes = memory_bytes
-        self._memory: OrderedDict[str, tuple[tuple[int, int, int], bytes]] = OrderedDict()
+        self._memory: OrderedDict[str, tuple[tuple[int, int, int, int], bytes]] = OrderedDict()
         self._memory_size = 0
         self.tmp_dir = self.root / "tmp"
         self.refs_dir = self.root / "refs"
         self.blob_dir = self.root / "sha256"
         for d in (self.tmp_dir, self.refs_dir, self.blob_dir):
             d.mkdir(parents=True, exist_ok=True)
-        self._verified: dict[str, tuple[int, int, int]] = {}
+        self._verified: dict[str, tuple[int, int, int, int]] = {}
         self._lock = threading.Lock()
 
     # -- paths -----------------------------------------------------------------------------------------------
@@ -167,9 +168,12 @@ class BlobStore:
         self._forget(digest)
 
     # -- reading ---------------------------------------------------------------------------------------------
-    def _stat_key(self, p: Path) -> tuple[int, int, int]:
+    def _stat_key(self, p: Path) -> tuple[int, int, int, int]:
+        """What a verification is valid for. The inode change time is in it: any write to the file (or ``utime``
+        putting its mtime back) moves ctime, which no user-space call can set, so a content change cannot keep an
+        old verification (size and mtime alone can be kept by whoever overwrites the file in place)."""
         st = p.stat()
-        return (st.st_ino, st.st_size, st.st_mtime_ns)
+        return (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
     def verified_fast(self, digest: str) -> Path | None:
         """The blob's path if this process verified it and it is unchanged since (one ``stat``), else None."""

@@ -12,6 +12,7 @@ jobs (:mod:`relight.server.services.tradeoffs`: sweeps, scenes) share.
 from __future__ import annotations
 
 import asyncio
+import errno
 import logging
 from collections.abc import Awaitable, Callable
 from typing import Any, Final
@@ -65,4 +66,6 @@ def failure_of(exc: BaseException) -> tuple[str, bool]:
                 "limit"), True
     if isinstance(exc, JobCancelled | SchedulerLost):
         return str(exc), True
+    if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return "the blob store is full (no space left on its device); resubmit once space is freed", True
     return f"{type(exc).__name__}: {exc}", True

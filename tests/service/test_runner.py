@@ -99,3 +99,14 @@ def test_submit_returning_none_stops() -> None:
 def test_failure_classification(exc: BaseException, retryable: bool, fragment: str) -> None:
     reason, again = runner.failure_of(exc)
     assert again is retryable and fragment in reason
+
+
+def test_a_full_disk_fails_retryably_without_the_path() -> None:
+    """Issue 12: a full disk failed the job with the raw OSError text (a server path); the reason now says what
+    happened, and the job can be resubmitted."""
+    import errno
+
+    from relight.server.services.runner import failure_of
+
+    reason, retryable = failure_of(OSError(errno.ENOSPC, "No space left on device", "/srv/relight/blobs/tmp/x.part"))
+    assert retryable and "full" in reason and "/srv" not in reason
