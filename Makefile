@@ -9,12 +9,13 @@ STAMP  := $(VENV)/.installed
 .PHONY: run test lint typecheck pytest jstest bench system-deps clean wheel
 
 # Debian packages the tests need: chromium (real-browser tests, never a downloaded browser), Mesa's EGL
-# (headless moderngl) and libllvm19 (Mitsuba 3's fast llvm_ad_rgb variant for the oracle test). Installed with apt
-# when missing and we are root (CI is); otherwise say what is missing.
-SYSTEM_PKGS := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libllvm19 libfilament-tools
+# (headless moderngl), libllvm19 (Mitsuba 3's fast llvm_ad_rgb variant for the oracle test), filament's cmgen and
+# postgresql (the service tests' real PostgreSQL, tests/service/postgres.py). Installed with apt when missing and we
+# are root (CI is); otherwise say what is missing.
+SYSTEM_PKGS := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libllvm19 libfilament-tools postgresql
 system-deps:
 	@if [ ! -x /usr/bin/chromium ] || ! ldconfig -p | grep -q libEGL_mesa || ! ldconfig -p | grep -q libLLVM.so.19 \
-	    || [ ! -x /usr/bin/cmgen ]; then \
+	    || [ ! -x /usr/bin/cmgen ] || ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then \
 	  if [ "$$(id -u)" = 0 ]; then \
 	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PKGS) >/dev/null; \
 	  else echo "need root to apt-get install $(SYSTEM_PKGS)" >&2; exit 1; fi; \
