@@ -19,7 +19,17 @@ import numpy as np
 import pytest
 
 from .postgres import Postgres, start_postgres
-from .support import Server, assert_problem, exr_bytes, library_map, make_envmap, read_exr, start_server, wait_done, wait_until
+from .support import (
+    Server,
+    assert_problem,
+    exr_bytes,
+    library_map,
+    make_envmap,
+    read_exr,
+    start_server,
+    wait_done,
+    wait_until,
+)
 
 pytestmark = pytest.mark.timeout(300)
 
