@@ -32,7 +32,7 @@ Handler = Callable[[argparse.Namespace], int]
 
 #: The core's own modules with a ``register(subparsers)`` function adding more subcommands.
 COMMAND_PROVIDERS = ["relight.cli_shrm", "relight.cli_plan", "relight.cli_factorize", "relight.cli_mesh",
-                     "relight.cli_sg", "relight.cli_shtable", "relight.cli_export"]
+                     "relight.cli_sg", "relight.cli_shtable", "relight.cli_export", "relight.cli_bake"]
 #: The entry point group through which other packages add subcommands (value ``module:register``).
 ENTRY_POINT_GROUP = "relight.commands"
 #: The commands this module defines itself (a run of one of them loads no provider).

@@ -48,33 +48,25 @@ def _write_atomic(path: Path, data: bytes) -> None:
         raise
 
 
-def cmd_export(args: argparse.Namespace) -> int:
+def export_chain(pixels: Any, source: dict[str, Any], out: Path, *, target: str, size: int, levels: int | None,
+                 epsilon: float, sun_spec: str, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The chain, SH9 and sun step of one map written to ``out`` (+ ``out.json``) atomically; the manifest."""
     import numpy as np
 
     from relight import __version__
     from relight.cube_chain import prefilter_chain
-    from relight.envmap import read_envmap
-    from relight.errors import InputError
     from relight.ktx2 import write_ktx2
     from relight.sh9 import all_conventions
     from relight.sun import apply_sun
 
-    if args.format != "ktx2":
-        raise InputError(f"--format {args.format!r} is not written yet; use ktx2")
-    out = Path(args.out)
-    if not out.parent.is_dir():
-        raise InputError(f"the folder of --out does not exist: {out.parent}")
-    env = read_envmap(args.envmap)
-    sun = apply_sun(np.asarray(env.pixels, dtype=np.float64), args.sun)
-    chain = prefilter_chain(sun.pixels, target=args.target, size=args.size, levels=args.levels,
-                            epsilon=args.epsilon)
+    sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
+    chain = prefilter_chain(sun.pixels, target=target, size=size, levels=levels, epsilon=epsilon)
     table = chain.summary()
     manifest: dict[str, Any] = {
         "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
         "lighting_order": chain.lighting_order, "face_order": ["+X", "-X", "+Y", "-Y", "+Z", "-Z"],
-        "source": {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])},
-        "levels": table, "seconds": chain.seconds, "relight_version": __version__,
-        "sh9": all_conventions(sun.pixels), "sun": sun.report,
+        "source": source, "size": size, "levels": table, "seconds": chain.seconds, "relight_version": __version__,
+        "sh9": all_conventions(sun.pixels), "sun": sun.report, **(extra or {}),
     }
     data = write_ktx2([lv.faces for lv in chain.levels], {"levels": table, "target": chain.target,
                                                           "roughness_mapping": chain.mapping,
@@ -82,11 +74,30 @@ def cmd_export(args: argparse.Namespace) -> int:
                       writer=f"relight {__version__}")
     _write_atomic(out, data)
     _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
+    return manifest
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from relight.envmap import read_envmap
+    from relight.errors import InputError
+    from relight.sun import parse_sun
+
+    if args.format != "ktx2":
+        raise InputError(f"--format {args.format!r} is not written yet; use ktx2")
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise InputError(f"the folder of --out does not exist: {out.parent}")
+    parse_sun(args.sun)
+    env = read_envmap(args.envmap)
+    source = {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
+    manifest = export_chain(env.pixels, source, out, target=args.target, size=args.size, levels=args.levels,
+                            epsilon=args.epsilon, sun_spec=args.sun)
+    table = manifest["levels"]
     if args.json:
         print(json.dumps(manifest, indent=2))
         return 0
-    print(f"{out}: {chain.target} GGX chain, {len(table)} levels from {args.size}^2 faces, "
-          f"{chain.seconds['total']:.2f} s")
+    print(f"{out}: {manifest['target']} GGX chain, {len(table)} levels from {args.size}^2 faces, "
+          f"{manifest['seconds']['total']:.2f} s")
     print(" level  size  roughness  method  order  predicted  bound     seconds")
     for row in table:
         order = "-" if row["order"] is None else str(row["order"])
