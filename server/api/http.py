@@ -46,6 +46,14 @@ def blob_response(request: Request, path: Path, digest: str, media_type: str,
     return FileResponse(path, media_type=media_type, headers=headers)
 
 
+def file_or_bytes_response(request: Request, content: bytes | None, path: Path, digest: str,
+                           media_type: str) -> Response:
+    """Bytes held in memory as they are; a large file (``content`` None) streamed from its verified path."""
+    if content is None:
+        return blob_response(request, path, digest, media_type)
+    return bytes_response(request, content, digest, media_type)
+
+
 def bytes_response(request: Request, content: bytes, digest: str, media_type: str) -> Response:
     etag = etag_of(digest)
     if not_modified(request, etag):

@@ -74,9 +74,10 @@ SHRM = register(JobKind("shrm", tasks.compute_shrm, request=ShrmCreate, prepare=
 
 @dataclass(frozen=True)
 class ResultFile:
-    """A verified result file: its bytes, digest, media type and where the store keeps it."""
+    """A verified result file: its bytes (None for a file too large for the memory cache: served streamed from
+    ``path``), digest, media type and where the store keeps it."""
 
-    content: bytes
+    content: bytes | None
     sha256: str
     media_type: str
     path: Path
@@ -161,14 +162,19 @@ class ShrmService:
         _, manifest = await self.manifest(job_id)
         info = manifest["files"][name]
         digest = info["sha256"]
+        media_type = info.get("media_type", "application/octet-stream")
         data = self.store.cached_bytes(digest)
-        if data is None:
-            try:
-                data = await in_thread(self.store.load, digest)
-            except (BlobMissing, BlobCorrupt) as exc:
-                await self._recompute(job_id, exc)
-                raise AssertionError("unreachable") from exc
-        return ResultFile(data, digest, info.get("media_type", "application/octet-stream"), self.store.path(digest))
+        if data is not None:
+            return ResultFile(data, digest, media_type, self.store.path(digest))
+        try:
+            if int(info.get("bytes") or 0) > self.store.memory_bytes // 8 or not info.get("bytes"):
+                # Large (or of unknown size): hashed once, then streamed from the file, never held whole.
+                return ResultFile(None, digest, media_type, await in_thread(self.store.verified_path, digest))
+            data = await in_thread(self.store.load, digest)
+        except (BlobMissing, BlobCorrupt) as exc:
+            await self._recompute(job_id, exc)
+            raise AssertionError("unreachable") from exc
+        return ResultFile(data, digest, media_type, self.store.path(digest))
 
     async def reflection(self, job_id: str, view_text: str) -> ResultFile:
         try:

@@ -9,7 +9,7 @@ from starlette.responses import Response as StarletteResponse
 
 from relight.contract.models import JobPublic, ShrmCreate, ShrmManifest
 from relight.server.api.deps import ShrmsDep
-from relight.server.api.http import bytes_response
+from relight.server.api.http import bytes_response, file_or_bytes_response
 from relight.server.problems import problem_responses
 from relight.worker.results import BIN_NAME, EXR_NAME, canonical_json
 
@@ -46,7 +46,7 @@ async def manifest(shrm_id: str, request: Request, shrms: ShrmsDep) -> Starlette
 async def coefficients_exr(shrm_id: str, request: Request, shrms: ShrmsDep) -> StarletteResponse:
     """float32 RGB layers (one per SHRM coefficient; plain R, G, B for a reflection map)."""
     f = await shrms.result_file(shrm_id, EXR_NAME)
-    return bytes_response(request, f.content, f.sha256, f.media_type)
+    return file_or_bytes_response(request, f.content, f.path, f.sha256, f.media_type)
 
 
 @router.get("/{shrm_id}/coefficients.bin", response_class=StarletteResponse,
@@ -55,7 +55,7 @@ async def coefficients_exr(shrm_id: str, request: Request, shrms: ShrmsDep) -> S
 async def coefficients_bin(shrm_id: str, request: Request, shrms: ShrmsDep) -> StarletteResponse:
     """float16 texture layers for WebGL2 (layout in the manifest's ``files``)."""
     f = await shrms.result_file(shrm_id, BIN_NAME)
-    return bytes_response(request, f.content, f.sha256, f.media_type)
+    return file_or_bytes_response(request, f.content, f.path, f.sha256, f.media_type)
 
 
 @router.get("/{shrm_id}/reflection.exr", response_class=StarletteResponse,
@@ -66,4 +66,4 @@ async def reflection(shrm_id: str, request: Request, shrms: ShrmsDep,
                                                 examples=["0,0,1"])] = "0,0,1") -> StarletteResponse:
     """The reflection map seen from the distant view V (seed 000 eq. 12), indexed by the reflection vector."""
     f = await shrms.reflection(shrm_id, view)
-    return bytes_response(request, f.content, f.sha256, f.media_type)
+    return file_or_bytes_response(request, f.content, f.path, f.sha256, f.media_type)
