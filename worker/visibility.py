@@ -87,9 +87,9 @@ def _run_blocks(store_root: str, geometry: dict[str, Any], request: dict[str, An
 
         with worker_client() as client:
             prev = client.scatter(previous, broadcast=True) if previous is not None else None
+            prefix = f"relight-visibility-block-{report.job_id}-{report.submission}-{stage}"
             futures = {client.submit(visibility_block, store_root, geometry, request, a, b, prev, pure=False,
-                                     key=f"relight-visibility-block-{report.job_id}-{stage}-{a}"): k
-                       for k, (a, b) in enumerate(ranges)}
+                                     key=f"{prefix}-{a}"): k for k, (a, b) in enumerate(ranges)}
             try:
                 for fut in as_completed(list(futures)):
                     done[futures[fut]], proc = fut.result()
