@@ -32,7 +32,7 @@ BANDS = ((0.0, 0.1), (0.1, 0.3), (0.3, 0.7), (0.7, 1.0))
 MAPS = ("city", "courtyard")
 BRDFS = ("microfacet:sigma=0.1", "microfacet:sigma=0.3", "ggx:alpha=0.1", "torrance-sparrow:alpha=0.2",
          "phong:s=64")
-EPSILONS = (0.1, 0.03, 0.01)
+EPSILONS = (0.1, 0.01)
 
 
 def _old_child(spec: str, eps: float, out: Any) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,11 @@ def test_prefilter_reflect_render_end_to_end(small_env: Path, tmp_path: Path,
     assert out.exists() and sidecar_path(out).exists() and rep.exists()
     sm = read_shrm(out)
     assert sm.components[0].maps.shape == (9, 16, 32, 3)
+    # issue 18: the --report JSON carries the predicted error per view band, as the typed report read back does
+    by_view = json.loads(rep.read_text())["predicted"]["by_view"]
+    assert [b["ndotv"] for b in by_view] == [[0.0, 0.3], [0.3, 0.7], [0.7, 1.0]]
+    assert by_view[0]["rms"] > by_view[2]["rms"] > 0.0 and all(b["rms_appendix_b"] > 0.0 for b in by_view)
+    assert [b.rms for b in sm.report.predicted.by_view] == [b["rms"] for b in by_view]  # type: ignore[attr-defined]
 
     mp = tmp_path / "map.exr"
     assert main(["reflect", str(out), "--view", "0,0.5,1", "--out", str(mp)]) == 0
