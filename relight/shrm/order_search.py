@@ -113,12 +113,12 @@ class BandSearch:
         }
 
 
-def _band_model(spec: ViewSpectrum, p: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+def _band_model(spec: ViewSpectrum, p: int, k_l: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Per band at view order P: the table ``epsilon_b(F)`` for F <= F0 (F0+1, nb) and, for step 2, ``pe_b``,
-    ``T_b`` (normalised by the band's energy) and ``r_b`` (max over channels folded in at the end)."""
-    table = brdf_band_epsilon(spec, p)
-    k_l = spec.band_energy_per_view()
+    ``T_b`` (normalised by the band's energy) and ``r_b`` (max over channels folded in at the end). ``k_l`` is
+    ``spec.band_energy_per_view()``."""
     d_l = spec.truncation_error_per_view(p)
+    table = brdf_band_epsilon(spec, p, k_l=k_l, d_l=d_l)
     f0 = spec.F
     tot = spec.band_sum(spec.k_tot[None])[0]  # (nb, C)
     tail = spec.band_sum(np.clip(spec.k_tot - k_l.sum(axis=0), 0.0, None)[None])[0]
@@ -193,7 +193,8 @@ def search_orders(
     p_top = min(p_cap, P_CAP)
     f0 = min(starting_order(lobe), f_cap)
     spec = cached_spectrum(lobe, f0, p_top, edges)
-    models = [_band_model(spec, p) for p in range(p_top + 1)]
+    k_l = spec.band_energy_per_view()
+    models = [_band_model(spec, p, k_l) for p in range(p_top + 1)]
 
     def feasible_f(p: int) -> int:  # the largest F the caps and the guard allow at P
         f = f_cap

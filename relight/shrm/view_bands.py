@@ -63,12 +63,14 @@ class Lighting(Protocol):
     def band_energy(self) -> NDArray[np.float64]: ...
 
 
-def brdf_band_epsilon(spec: ViewSpectrum, p_order: int, f_max: int | None = None) -> FloatArray:
+def brdf_band_epsilon(spec: ViewSpectrum, p_order: int, f_max: int | None = None, *,
+                      k_l: FloatArray | None = None, d_l: FloatArray | None = None) -> FloatArray:
     """The lobe's uncaptured energy fraction per fine band for every F <= f_max at view order P: (F+1, n_bands),
-    maximum over colour channels (the lighting white)."""
+    maximum over colour channels (the lighting white). ``k_l``, ``d_l``: the spectrum's
+    ``band_energy_per_view()`` and ``truncation_error_per_view(P)`` when the caller has them."""
     f_max = spec.F if f_max is None else f_max
-    k_l = spec.band_energy_per_view()[: f_max + 1]
-    d_l = spec.truncation_error_per_view(p_order)[: f_max + 1]
+    k_l = (spec.band_energy_per_view() if k_l is None else k_l)[: f_max + 1]
+    d_l = (spec.truncation_error_per_view(p_order) if d_l is None else d_l)[: f_max + 1]
     err = np.cumsum(d_l, axis=0) + np.clip(spec.k_tot[None] - np.cumsum(k_l, axis=0), 0.0, None)
     tot = spec.band_sum(spec.k_tot[None])[0]  # (n_bands, C)
     with np.errstate(invalid="ignore", divide="ignore"):
