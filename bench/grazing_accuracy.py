@@ -82,10 +82,13 @@ def after_prediction(px: np.ndarray, lobe: Any, eps: float, size: int, f_b: int,
 
     limit = SETTINGS.grazing_limit
     res, _ = order_search.cached_search(lobe, eps, grazing_limit=limit, structure=structure_of(lobe)[0], size=size)
+    from relight.shrm.creation import spectrum_order
+
+    f_cap = px.shape[0] - 1
     spec = res.spectrum
-    if spec.F < res.F or spec.P < res.P:
-        spec = order_search.cached_spectrum(lobe, res.F, res.P, band_edges(limit))
-    lig = project_lighting(px, min(max(res.F, spec.F), px.shape[0] - 1))
+    if spec.F < spectrum_order(f_b, f_cap):  # as create_shrm: the prediction's spectrum reaches spectrum_order(F_B)
+        spec = order_search.cached_spectrum(lobe, spectrum_order(f_b, f_cap), p_b, band_edges(limit))
+    lig = project_lighting(px, min(max(res.F, spec.F), f_cap))
     return predicted_by_view(spec, lig, f_b, p_b, bands=BANDS)
 
 

@@ -236,7 +236,9 @@ def prefilter_radial(
     orders = choice.report()
     from relight.shrm.view_bands import radial_by_view  # issue 18: the same error for every view band
 
-    by_view = radial_by_view(lobe, lighting, f_b, window=None if window == "none" else window_factors(f_b, window))
+    want = min(f_cap, max(f_b + max(16, f_b // 2), 96))  # the bands beyond F_B from the map, not App. B's step
+    lig_pred = lighting if lighting.lmax >= want else project_lighting(pixels, want, backend=backend, weights=weights)
+    by_view = radial_by_view(lobe, lig_pred, f_b, window=None if window == "none" else window_factors(f_b, window))
     timer.lap("prediction")
     report = PrefilterReport(
         center=str(lobe.center),

@@ -189,7 +189,12 @@ def create_shrm(
             chosen.append((lobe, spec, res.F, res.P, sel))
     timer.lap("brdf_coefficients")
 
-    f_proj = min(max(max(f, sp.F) for _, sp, f, _, _ in chosen), f_cap)
+    # The prediction reads the lobe and the lighting to spectrum_order(F) (at least min(H - 1, 96)), so the bands
+    # beyond F_B come from both spectra rather than from App. B's step (which puts all the lighting beyond the
+    # tabulated order at one band: 3-18 times too much on city's lamps, docs/accuracy/grazing.md).
+    pred_specs = [order_search.cached_spectrum(lobe, spectrum_order(f, f_cap), p, edges)
+                  if sp.F < spectrum_order(f, f_cap) else sp for lobe, sp, f, p, _ in chosen]
+    f_proj = min(max(max(f, sp.F, ps.F) for (_, sp, f, _, _), ps in zip(chosen, pred_specs, strict=True)), f_cap)
     lighting = project_lighting(pixels, f_proj)
     timer.lap("lighting_projection")
     f_l = None
@@ -220,7 +225,7 @@ def create_shrm(
         rho = coeffs.rho[: f_b + 1, : p_b + 1, : min(coeffs.Q, p_b) + 1]
         terms = terms_for(structure, p_b)
         maps = synthesize_local(lighting.alm, lighting.lmax, rho, terms, s, backend=backend)
-        views = view_prediction(spec, lighting, f_b, p_b, epsilon=epsilon, grazing_limit=limit,
+        views = view_prediction(pred_specs[k], lighting, f_b, p_b, epsilon=epsilon, grazing_limit=limit,
                                 achievable=achievable.get(k))
         predicted = ShrmPredicted(**predicted_errors(coeffs, lighting, f_b, p_b), grazing_limit=limit,
                                   by_view=views.by_view, by_view_fine=views.by_view_fine)
