@@ -232,7 +232,10 @@ def _shrm(lobe_or_sum: Any, lighting: StoredLighting, h: int, w: int, params: Ma
         p_b = 0 if structure == "radial" else p_rho
         f_pred = min(f_b, spec.F)  # beyond the search's tabulation (step 2 of order_search) the plan reads its F0
         errs = predicted_errors(spec.coefficients(), lighting, f_pred, p_b)  # type: ignore[arg-type]
-        vp = view_prediction(spec, lighting, f_pred, p_b, epsilon=eps, grazing_limit=limit,
+        # per view band as create_shrm predicts: the lobe read to spectrum_order(F_B), not App. B's step beyond F0
+        view_spec = (order_search.cached_spectrum(lobe, spectrum_order(f_b, f_cap), p_b, edges)
+                     if spec.F < spectrum_order(f_b, f_cap) else spec)
+        vp = view_prediction(view_spec, lighting, min(f_b, view_spec.F), p_b, epsilon=eps, grazing_limit=limit,
                              achievable=achievable)
         bands, fine = vp.by_view, vp.by_view_fine
         views.append(bands)
