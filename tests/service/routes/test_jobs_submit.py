@@ -6,13 +6,15 @@
 * a kind that is only a task function plus a registration (``registered_kind.py``, loaded through
   ``RELIGHT_JOB_KIND_MODULES``): submitted, streamed to the end, its result and file read through the generic
   routes, and cancelled mid-run;
+* every registered kind (a sample request each, which a new kind must add): one job watched over SSE to the end,
+  one cancelled mid-run;
 * the cap (429 + Retry-After) and validation (422 naming the field or the known kinds) hold on the generic route.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import httpx
@@ -37,7 +39,9 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]
         with httpx.Client(base_url=server.url, timeout=60) as http:
             r = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=41), data))
             assert r.status_code in (200, 201), r.text
-            yield {"url": server.url, "env": r.json()["id"]}
+            m = http.post("/meshes", content=TETRAHEDRON, params={"name": "tetrahedron.obj"})
+            assert m.status_code in (200, 201), m.text
+            yield {"url": server.url, "env": r.json()["id"], "mesh": m.json()["id"]}
     finally:
         server.stop()
 
@@ -67,6 +71,55 @@ def bodies(env: str) -> dict[str, tuple[str, dict[str, Any]]]:
         "scene": ("/scenes", {"environment": env, "epsilon": 0.05, "size": 12, "objects": [
             {"name": "chalk", "size": 1, "distance": 10, "material": "lambert:albedo=0.7"}]}),
     }
+
+
+#: A closed tetrahedron (OBJ): the smallest mesh a visibility job takes.
+TETRAHEDRON = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+#: kind -> request of variant k (distinct k: distinct jobs). Every registered kind needs one here (the acceptance
+#: test of the job system runs each kind to the end and cancels one mid-run).
+SAMPLES: dict[str, Callable[[dict[str, Any], int], dict[str, Any]]] = {
+    "shrm": lambda s, k: {**bodies(s["env"])["shrm"][1], "size": 20 + k},
+    "tradeoff": lambda s, k: {**bodies(s["env"])["tradeoff"][1], "epsilons": [0.2 + 0.01 * k]},
+    "scene": lambda s, k: {**bodies(s["env"])["scene"][1], "size": 20 + k},
+    "squares": lambda s, k: {"n": 300 + k},
+    "visibility": lambda s, k: {"mesh": s["mesh"], "order": 1, "rays": 16, "seed": 1 + k},
+}
+
+
+def test_every_registered_kind_has_a_sample(http: httpx.Client) -> None:
+    kinds = set(http.get("/jobs/kinds").json()["items"])
+    assert kinds == set(SAMPLES), (f"kinds without a sample request: {sorted(kinds - set(SAMPLES))} (add one to "
+                                   "SAMPLES in tests/service/routes/test_jobs_submit.py); samples of no kind: "
+                                   f"{sorted(set(SAMPLES) - kinds)}")
+
+
+@pytest.mark.parametrize("kind", sorted(SAMPLES))
+def test_every_kind_streams_to_the_end_and_cancels_mid_run(served: dict[str, Any], http: httpx.Client,
+                                                           kind: str) -> None:
+    """Through ``POST /jobs``: one job of the kind watched over SSE until it succeeds, a second one cancelled while
+    it runs (it ends ``cancelled`` and keeps no result)."""
+    wait_until(lambda: idle(http), 120, "earlier jobs to end")
+    r = http.post("/jobs", json={"kind": kind, "request": SAMPLES[kind](served, 0)})
+    assert r.status_code == 202, r.text
+    events = stream(http, r.json()["id"])
+    assert [e for e, _ in events][-1] == "end" and events[-1][1]["state"] == "succeeded", events[-1]
+    assert any(j["state"] == "running" and 0 < j["progress"] < 1 for _, j in events), [j for _, j in events]
+    r = http.post("/jobs", json={"kind": kind, "request": SAMPLES[kind](served, 1)})
+    assert r.status_code == 202, r.text
+    job_id = r.json()["id"]
+    seen = []
+    with connect_sse(http, "GET", f"/jobs/{job_id}/events", timeout=httpx.Timeout(120.0, connect=10.0)) as source:
+        for e in source.iter_sse():
+            job = json.loads(e.data)
+            seen.append((e.event, job["state"], job["stage"]))
+            if job["state"] == "running" and job["stage"] == "test_delay" and ("cancel",) not in seen:
+                seen.append(("cancel",))
+                assert http.delete(f"/jobs/{job_id}").json()["state"] == "cancelled"
+            if e.event == "end":
+                break
+    assert ("cancel",) in seen and seen[-1] == ("end", "cancelled", "cancelled"), seen
+    assert_problem(http.get(f"/jobs/{job_id}/result"), 409, "cancelled")
 
 
 def test_kinds_are_listed(http: httpx.Client) -> None:
