@@ -84,6 +84,8 @@ SAMPLES: dict[str, Callable[[dict[str, Any], int], dict[str, Any]]] = {
     "scene": lambda s, k: {**bodies(s["env"])["scene"][1], "size": 20 + k},
     "squares": lambda s, k: {"n": 300 + k},
     "visibility": lambda s, k: {"mesh": s["mesh"], "order": 1, "rays": 16, "seed": 1 + k},
+    "sh_table": lambda s, k: {"brdf": "ashikhmin-shirley:nu=24,nv=8", "order": 2, "resolution": 8 + k,
+                              "layout": "hemi-octahedral"},
 }
 
 
@@ -123,7 +125,8 @@ def test_every_kind_streams_to_the_end_and_cancels_mid_run(served: dict[str, Any
 
 
 def test_kinds_are_listed(http: httpx.Client) -> None:
-    assert {"shrm", "tradeoff", "scene", "squares"} <= set(http.get("/jobs/kinds").json()["items"])
+    kinds = set(http.get("/jobs/kinds").json()["items"])
+    assert {"shrm", "tradeoff", "scene", "squares", "visibility", "sh_table"} <= kinds
 
 
 @pytest.mark.parametrize("kind", ["shrm", "tradeoff", "scene"])
