@@ -86,6 +86,8 @@ SAMPLES: dict[str, Callable[[dict[str, Any], int], dict[str, Any]]] = {
     "visibility": lambda s, k: {"mesh": s["mesh"], "order": 1, "rays": 16, "seed": 1 + k},
     "sh_table": lambda s, k: {"brdf": "ashikhmin-shirley:nu=24,nv=8", "order": 2, "resolution": 8 + k,
                               "layout": "hemi-octahedral"},
+    "gaussian_fit": lambda s, k: {"brdf": "phong:s=16", "lobes": 1, "max_lobes": 1, "elevations": 2 + k},
+    "gaussian_chain": lambda s, k: {"envmap": s["env"], "levels": 2 + k},
 }
 
 
