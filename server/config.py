@@ -39,6 +39,8 @@ class Settings(BaseSettings):
     plan_workers: int = Field(2, ge=1, description="sandbox processes that plan requests (/plan, submissions)")
     plan_memory_bytes: int = Field(4 << 30, ge=256 << 20, description="address-space limit of each planning sandbox")
     plan_timeout_s: float = Field(300.0, gt=0, description="time limit of one plan (order search, coefficients)")
+    plan_test_busy_s: float = Field(0.0, ge=0, le=600, description="test hook, 0 in production: every plan first "
+                                    "computes for this many CPU seconds, so a test can catch plans in flight")
     min_free_bytes: int = Field(256 * MiB, ge=0, description="free disk below this in the blob store: /health "
                                 "says degraded")
     max_active_jobs: int = Field(64, ge=1, description="queued + running jobs; more answer 429")

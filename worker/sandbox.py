@@ -14,11 +14,22 @@ import asyncio
 import contextlib
 import multiprocessing
 import resource
+import time
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any, TypeVar
 
 T = TypeVar("T")
+
+
+def busy_then(busy_s: float, fn: Callable[..., T], *args: Any) -> T:
+    """``fn(*args)`` after ``busy_s`` seconds of CPU work: the server's test hook ``plan_test_busy_s`` (0 in
+    production), because real plans now finish in about a second, too fast for a test to catch one in flight."""
+    end = time.process_time() + busy_s
+    spin = 0
+    while time.process_time() < end:
+        spin += 1
+    return fn(*args)
 
 
 class SandboxMemoryError(Exception):

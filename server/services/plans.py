@@ -19,7 +19,7 @@ from relight.server.services.brdfs import BrdfService
 from relight.server.services.calibration import CalibrationService
 from relight.server.services.envmaps import EnvmapService
 from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
-from relight.worker.sandbox import SandboxMemoryError, SandboxPool, SandboxTimeout
+from relight.worker.sandbox import SandboxMemoryError, SandboxPool, SandboxTimeout, busy_then
 from relight.worker.specs import to_core
 
 
@@ -79,7 +79,8 @@ class PlanService:
 
         try:
             spec = await in_thread(to_core, prep.brdf.spec, self.store)
-            raw: JobPlan = await self.pool.run(plan_job, prep.envmap.model_dump(mode="json"), spec, prep.params,
+            raw: JobPlan = await self.pool.run(busy_then, self.settings.plan_test_busy_s, plan_job,
+                                               prep.envmap.model_dump(mode="json"), spec, prep.params,
                                                timeout=self.settings.plan_timeout_s)
         except (InputError, ValueError) as exc:
             raise Unprocessable(str(exc)) from None
