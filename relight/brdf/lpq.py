@@ -446,7 +446,8 @@ _coeff_cache: dict[str, BRDFCoefficients] = {}
 _select_cache: dict[str, OrderSelection] = {}
 
 
-def _key(lobe: Lobe, *parts: Any) -> str | None:
+def lobe_cache_key(lobe: Lobe, *parts: Any) -> str | None:
+    """The cache key of a lobe and its parameters (the lobe's JSON spec), shared by the order searches' caches."""
     import json
 
     try:
@@ -455,7 +456,8 @@ def _key(lobe: Lobe, *parts: Any) -> str | None:
         return None  # a lobe without a JSON spec is never cached
 
 
-def _remember(cache: dict[str, Any], key: str, value: Any) -> None:
+def remember(cache: dict[str, Any], key: str, value: Any) -> None:
+    """Insert into a bounded cache, dropping the oldest entry at ``_CACHE_SIZE``."""
     if len(cache) >= _CACHE_SIZE:
         cache.pop(next(iter(cache)))
     cache[key] = value
@@ -463,23 +465,23 @@ def _remember(cache: dict[str, Any], key: str, value: Any) -> None:
 
 def cached_coefficients(lobe: Lobe, f_order: int, p_order: int) -> tuple[BRDFCoefficients, bool]:
     """:func:`brdf_coefficients` through the cache; returns (coefficients, whether it was a cache hit)."""
-    key = _key(lobe, f_order, p_order)
+    key = lobe_cache_key(lobe, f_order, p_order)
     if key is not None and key in _coeff_cache:
         return _coeff_cache[key], True
     coeffs = brdf_coefficients(lobe, f_order, p_order)
     if key is not None:
-        _remember(_coeff_cache, key, coeffs)
+        remember(_coeff_cache, key, coeffs)
     return coeffs, False
 
 
 def cached_select_orders(lobe: Lobe, epsilon: float) -> tuple[OrderSelection, bool]:
     """:func:`select_orders` through the cache; returns (selection, whether it was a cache hit)."""
-    key = _key(lobe, epsilon)
+    key = lobe_cache_key(lobe, epsilon)
     if key is not None and key in _select_cache:
         return _select_cache[key], True
     sel = select_orders(lobe, epsilon)
     if key is not None:
-        _remember(_select_cache, key, sel)
+        remember(_select_cache, key, sel)
     return sel, False
 
 

@@ -27,7 +27,6 @@ Searches are cached per lobe, tolerance, limit and caps (``cached_search``) and 
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -38,6 +37,7 @@ from numpy.typing import NDArray
 
 from relight.brdf.base import Lobe
 from relight.brdf.coefficients import spectrum_for_tolerance
+from relight.brdf.lpq import lobe_cache_key, remember
 from relight.shrm.view_bands import brdf_band_epsilon
 from relight.shrm.view_spectrum import ViewSpectrum, band_edges, view_spectrum
 
@@ -234,44 +234,31 @@ def search_orders(
 
 
 # ------------------------------------------------------------------------------------------------- caching
-_CACHE_SIZE = 32
+# the same bounded caches and keys as relight.brdf.lpq's coefficient cache
 _spectra: dict[str, ViewSpectrum] = {}
 _searches: dict[str, BandSearch] = {}
-
-
-def _key(lobe: Lobe, *parts: Any) -> str | None:
-    try:
-        return json.dumps([type(lobe).__qualname__, lobe.spec(), *parts], sort_keys=True)
-    except (TypeError, ValueError):
-        return None  # a lobe without a JSON spec is never cached
-
-
-def _remember(cache: dict[str, Any], key: str, value: Any) -> None:
-    if len(cache) >= _CACHE_SIZE:
-        cache.pop(next(iter(cache)))
-    cache[key] = value
 
 
 def cached_spectrum(lobe: Lobe, f_order: int, p_order: int, edges: tuple[float, ...]) -> ViewSpectrum:
     """:func:`view_spectrum` through a per-lobe cache keyed by the exact orders (the grid depends on F, so a
     truncated larger spectrum would differ in the last digits: results must not depend on what ran before)."""
-    key = _key(lobe, f_order, p_order, list(edges))
+    key = lobe_cache_key(lobe, f_order, p_order, list(edges))
     if key is not None and key in _spectra:
         return _spectra[key]
     spec = view_spectrum(lobe, f_order, p_order, edges=edges)
     if key is not None:
-        _remember(_spectra, key, spec)
+        remember(_spectra, key, spec)
     return spec
 
 
 def cached_search(lobe: Lobe, epsilon: float, **kw: Any) -> tuple[BandSearch, bool]:
     """:func:`search_orders` through the cache; returns (search, whether it was a cache hit)."""
-    key = _key(lobe, epsilon, sorted(kw.items()))
+    key = lobe_cache_key(lobe, epsilon, sorted(kw.items()))
     if key is not None and key in _searches:
         return _searches[key], True
     res = search_orders(lobe, epsilon, **kw)
     if key is not None:
-        _remember(_searches, key, res)
+        remember(_searches, key, res)
     return res, False
 
 
