@@ -20,11 +20,12 @@ Better than the paper's trust-region fit of all 5K parameters (~10 min per BRDF 
   added at the residual's peak and kept if the error falls; other elevations carry it with weight 0.
 * **Reports**: per-elevation relative L2 error, the error at each mid-elevation with *interpolated* parameters, the
   energy check ``sum_k w_k`` against the directional albedo ``int T dw``, the fitted mass leaking below the horizon.
+
+One elevation's solve is ``relight.sg_varpro``, the lobe order across elevations ``relight.sg_order``.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from dataclasses import dataclass
@@ -32,15 +33,22 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
 
 from relight.brdf.base import Lobe
 from relight.brdf.gaussian_lobes import GaussianLobes
 from relight.brdf.models import SumBRDF
-from relight.brdf.vmf import vmf_norm
 from relight.conventions import LUMINANCE_WEIGHTS
 from relight.errors import InputError
+from relight.sg_order import (
+    DEAD_FRACTION,
+    MAX_PERMUTED_LOBES,
+    best_permutation,
+    match_lobes,
+    merge_duplicates,
+    pin_dead,
+)
 from relight.sg_slice import SliceGrid, slice_grid, transfer_slice
+from relight.sg_varpro import SIGMA_LO, Solution, VarPro, basis, channel_weights, luminance, peak, relative_error, solve
 
 FloatArray = NDArray[np.float64]
 
@@ -52,145 +60,9 @@ DEFAULT_LOBES, DEFAULT_ELEVATIONS = 3, 15
 #: 81 degrees 2.3, 2.7, 5.2 % instead of K = 3's 5.1, 12.1, 18.6 %, tests/relight/test_sgfit.py).
 DEFAULT_EXTRA_LOBES = 2
 DEFAULT_THETA_MAX = math.radians(87.0)
-#: Bounds: sigma from 1e-3 rad (0.06 degrees; sharper than any map's pixel) to 1.5 rad; mu within +-pi/2.
-SIGMA_LO, SIGMA_HI = 1e-3, 1.5
-#: Lobes closer than this in mu (relative to sigma) and log sigma are duplicates and merged.
-MERGE_TOL = 0.05
 #: The warm-started solution is kept unless another start lowers the cost by more than this fraction: switching
 #: basins between neighbouring elevations makes interpolated parameters blend unrelated lobes.
 CONTINUATION_SLACK = 0.02
-#: Up to this many lobes the order at each elevation is the permutation that fits the mid-elevation best (5! = 120).
-MAX_PERMUTED_LOBES = 5
-#: A lobe with less than this fraction of the total luminance weight is dead.
-DEAD_FRACTION = 1e-6
-
-
-def _basis(local: FloatArray, mu: FloatArray, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """vMF lobes at the nodes (M, K) and their derivatives by mu and by s = log sigma."""
-    a, b = local[:, 0:1], local[:, 1:2]
-    cm, sm = np.cos(mu)[None, :], np.sin(mu)[None, :]
-    t = a * cm + b * sm
-    kappa = np.exp(-2.0 * s)[None, :]
-    with np.errstate(under="ignore", over="ignore"):
-        g = vmf_norm(kappa) * np.exp(kappa * (t - 1.0))
-        dlogc = 1.0 / kappa - 2.0 / np.expm1(2.0 * kappa)
-    dmu = g * kappa * (b * cm - a * sm)
-    ds = g * (dlogc + t - 1.0) * (-2.0 * kappa)
-    return g, dmu, ds
-
-
-def nnls_gram(gram: FloatArray, b: FloatArray) -> FloatArray:
-    """Non-negative least squares ``min ||Phi w - y||, w >= 0`` from ``gram = Phi^T Phi`` and ``b = Phi^T y``.
-
-    The optimum is the unconstrained solution on its own support (KKT), so for K <= 6 every support is tried and the
-    best feasible one kept (at most 63 K x K solves: far cheaper than an active-set NNLS on the M x K matrix);
-    larger K uses ``scipy.optimize.nnls`` on the Cholesky factor.
-    """
-    k = gram.shape[0]
-    scale = np.sqrt(np.maximum(np.diag(gram), 1e-300))
-    g = gram / np.outer(scale, scale)
-    bb = b / scale
-    if k > 6:
-        ch = np.linalg.cholesky(g + 1e-12 * np.eye(k))
-        w, _ = optimize.nnls(ch.T, np.linalg.solve(ch, bb))
-        return np.asarray(w / scale, dtype=np.float64)
-    best_w, best_c = np.zeros(k), 0.0
-    for mask in range(1, 1 << k):
-        idx = [j for j in range(k) if mask >> j & 1]
-        sub = g[np.ix_(idx, idx)]
-        try:
-            ws = np.linalg.solve(sub + 1e-13 * np.eye(len(idx)), bb[idx])
-        except np.linalg.LinAlgError:
-            continue
-        if np.any(ws < 0.0):
-            continue
-        c = -float(ws @ bb[idx])  # cost - y^T y = w^T G w - 2 w^T b = -w^T b at the unconstrained optimum
-        if c < best_c:
-            best_c, best_w = c, np.zeros(k)
-            best_w[idx] = ws
-    return np.asarray(best_w / scale, dtype=np.float64)
-
-
-class _VarPro:
-    """Residual and Kaufman Jacobian of the variable-projection problem for one elevation (module docstring)."""
-
-    def __init__(self, local: FloatArray, sq: FloatArray, y: FloatArray, k: int, fix_mu: bool) -> None:
-        self.local, self.sq, self.y, self.k, self.fix_mu = local, sq, y, k, fix_mu
-        self._x: FloatArray | None = None
-
-    def split(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        if self.fix_mu:
-            return np.zeros(self.k), x
-        return x[: self.k], x[self.k :]
-
-    def _eval(self, x: FloatArray) -> None:
-        if self._x is not None and np.array_equal(x, self._x):
-            return
-        mu, s = self.split(x)
-        g, dmu, ds = _basis(self.local, mu, s)
-        phi = g * self.sq[:, None]
-        gram = phi.T @ phi
-        w = nnls_gram(gram, phi.T @ self.y)
-        self._x = x.copy()
-        self.phi, self.gram, self.dmu, self.ds, self.w = phi, gram, dmu, ds, w
-        self.res = phi @ w - self.y
-
-    def fun(self, x: FloatArray) -> FloatArray:
-        self._eval(x)
-        return self.res
-
-    def jac(self, x: FloatArray) -> FloatArray:
-        self._eval(x)
-        act = self.w > 0.0
-        cols = []
-        if not self.fix_mu:
-            cols.append(self.dmu * (self.w * 1.0)[None, :])
-        cols.append(self.ds * self.w[None, :])
-        d = np.concatenate(cols, axis=1) * self.sq[:, None]
-        if act.any():  # d - Phi_F (Phi_F^T Phi_F)^-1 Phi_F^T d: the projection onto the active columns' complement
-            pf = self.phi[:, act]
-            coef = np.linalg.lstsq(self.gram[np.ix_(act, act)], pf.T @ d, rcond=None)[0]
-            d = d - pf @ coef
-        return d
-
-
-@dataclass
-class _Solution:
-    mu: FloatArray
-    s: FloatArray
-    w: FloatArray  # luminance weights (K,)
-    cost: float
-
-
-def _solve(prob: _VarPro, mu0: FloatArray, s0: FloatArray, max_nfev: int) -> _Solution:
-    lo_s, hi_s = math.log(SIGMA_LO), math.log(SIGMA_HI)
-    s0 = np.clip(s0, lo_s + 1e-9, hi_s - 1e-9)
-    mu0 = np.clip(mu0, -math.pi / 2 + 1e-9, math.pi / 2 - 1e-9)
-    k = prob.k
-    if prob.fix_mu:
-        x0, lo, hi = s0, np.full(k, lo_s), np.full(k, hi_s)
-    else:
-        x0 = np.concatenate([mu0, s0])
-        lo = np.concatenate([np.full(k, -math.pi / 2), np.full(k, lo_s)])
-        hi = np.concatenate([np.full(k, math.pi / 2), np.full(k, hi_s)])
-    res = optimize.least_squares(prob.fun, x0, jac=prob.jac, bounds=(lo, hi), method="trf", x_scale="jac",
-                                 max_nfev=max_nfev, xtol=1e-8, ftol=1e-9, gtol=1e-9)
-    mu, s = prob.split(res.x)
-    prob._eval(res.x)
-    return _Solution(mu=mu.copy(), s=s.copy(), w=prob.w.copy(), cost=float(prob.res @ prob.res))
-
-
-def _peak(local: FloatArray, y: FloatArray, sq: FloatArray) -> tuple[float, float]:
-    """In-plane angle (mu) of the largest sample of ``y / sq`` and the width sigma of the mass around it."""
-    val = np.where(sq > 0.0, y / np.where(sq > 0.0, sq, 1.0), 0.0)
-    j = int(np.argmax(val))
-    mu = math.atan2(local[j, 1], local[j, 0])
-    mu = float(np.clip(mu, -math.pi / 2 + 1e-6, math.pi / 2 - 1e-6))
-    t = local[:, 0] * math.cos(mu) + local[:, 1] * math.sin(mu)
-    wt = np.maximum(y, 0.0) * sq
-    m = float(wt.sum())
-    sig2 = float((wt * (1.0 - t)).sum() / m) if m > 0.0 else 0.1
-    return mu, float(np.clip(math.sqrt(max(sig2, SIGMA_LO**2)), SIGMA_LO, SIGMA_HI))
 
 
 @dataclass
@@ -216,63 +88,6 @@ class FitSettings:
             raise InputError(f"fit: max_lobes must lie in [lobes, 8], got {self.max_lobes}")
 
 
-def _channels_weights(phi_shape: FloatArray, sq: FloatArray, t: FloatArray) -> FloatArray:
-    """Per-channel NNLS weights (K, C) for the fixed shapes phi (M, K) (already scaled by sq)."""
-    out = np.zeros((phi_shape.shape[1], t.shape[1]))
-    gram = phi_shape.T @ phi_shape
-    for c in range(t.shape[1]):
-        out[:, c] = nnls_gram(gram, phi_shape.T @ (sq * t[:, c]))
-    return out
-
-
-def _error(local: FloatArray, sq: FloatArray, t: FloatArray, mu: FloatArray, s: FloatArray, w: FloatArray) -> float:
-    """Relative L2 error over all channels: sqrt(sum_c ||T_c - T~_c||^2 / sum_c ||T_c||^2)."""
-    g, _, _ = _basis(local, mu, s)
-    approx = g @ w  # (M, C)
-    num = float(np.sum(((approx - t) * sq[:, None]) ** 2))
-    den = float(np.sum((t * sq[:, None]) ** 2))
-    return math.sqrt(num / den) if den > 0.0 else (0.0 if num == 0.0 else math.inf)
-
-
-def _luminance(t: FloatArray) -> FloatArray:
-    return t[:, 0] if t.shape[1] == 1 else np.asarray(t @ LUMINANCE_WEIGHTS, dtype=np.float64)
-
-
-def _merge(mu: FloatArray, s: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Merge near-duplicate lobes (weights summed, parameters weight-averaged); the freed lobe gets weight 0."""
-    mu, s, w = mu.copy(), s.copy(), w.copy()
-    lum = w.sum(axis=1)
-    for a in range(len(mu)):
-        for b in range(a + 1, len(mu)):
-            if lum[a] <= 0.0 or lum[b] <= 0.0:
-                continue
-            sig = math.exp(min(s[a], s[b]))
-            if abs(mu[a] - mu[b]) < MERGE_TOL * sig and abs(s[a] - s[b]) < MERGE_TOL:
-                tot = lum[a] + lum[b]
-                mu[a] = (lum[a] * mu[a] + lum[b] * mu[b]) / tot
-                s[a] = (lum[a] * s[a] + lum[b] * s[b]) / tot
-                w[a] = w[a] + w[b]
-                w[b] = 0.0
-                lum[a], lum[b] = tot, 0.0
-    return mu, s, w
-
-
-def _match(prev_mu: FloatArray, prev_s: FloatArray, prev_w: FloatArray, mu: FloatArray, s: FloatArray,
-           w: FloatArray) -> NDArray[np.intp]:
-    """Permutation p so that lobe p[k] of this elevation continues lobe k of the previous one: the assignment
-    minimising the distance in (mu / sigma, log sigma, weight fraction); a dead lobe's (mu, sigma) do not count."""
-    a_p = prev_w / max(float(prev_w.sum()), 1e-300)
-    a_n = w / max(float(w.sum()), 1e-300)
-    live_p = a_p > DEAD_FRACTION
-    live_n = a_n > DEAD_FRACTION
-    sig = np.exp(prev_s)[:, None]
-    shape = ((prev_mu[:, None] - mu[None, :]) / sig) ** 2 + (prev_s[:, None] - s[None, :]) ** 2
-    cost = np.where(live_p[:, None] & live_n[None, :], shape, 1.0) + 4.0 * (a_p[:, None] - a_n[None, :]) ** 2
-    cost = np.where(~live_p[:, None] & ~live_n[None, :], 0.0, cost)
-    _, col = optimize.linear_sum_assignment(cost)
-    return np.asarray(col, dtype=np.intp)
-
-
 def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None = None) -> GaussianLobes:
     """Fit K Gaussian lobes at N elevations in [0, theta_max] (module docstring); returns the material with its
     report in ``.fit`` (per-elevation errors, mid-elevation errors, energy check, timings)."""
@@ -288,24 +103,24 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
     leak = np.zeros(st.elevations)
     used = np.zeros(st.elevations, dtype=np.intp)
     slices: list[tuple[FloatArray, FloatArray]] = []
-    prev: _Solution | None = None
-    prev_full: _Solution | None = None
-    bests: list[_Solution] = []
-    probs: list[_VarPro] = []
+    prev: Solution | None = None
+    prev_full: Solution | None = None
+    bests: list[Solution] = []
+    probs: list[VarPro] = []
     for i, th in enumerate(thetas):
         t, valid = transfer_slice(brdf, grid, float(th))
         if t.shape[1] == 1:
             t = np.repeat(t, 3, axis=1)
         sq = np.sqrt(grid.weights * valid)
         slices.append((t, sq))
-        y = sq * _luminance(t)
+        y = sq * luminance(t)
         albedo[i] = (grid.weights * valid) @ t
         if not np.any(y > 0.0):
             raise InputError(f"fit: the BRDF slice is zero at theta_o = {math.degrees(th):.3g} degrees")
-        mu_pk, sig_pk = _peak(local, y, sq)
+        mu_pk, sig_pk = peak(local, y, sq)
         k = st.lobes
         fix_mu = i == 0 and th == 0.0
-        prob = _VarPro(local, sq, y, k, fix_mu)
+        prob = VarPro(local, sq, y, k, fix_mu)
         starts: list[tuple[FloatArray, FloatArray]] = []
         fresh_mu = np.zeros(k) if fix_mu else np.full(k, mu_pk)
         for spread in ((0.5, 1.0, 2.0), (0.7, 1.0, 1.4), (0.3, 1.0, 3.0)) if prev is None else ((0.5, 1.0, 2.0),):
@@ -323,18 +138,18 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
                 mu_r[dead] = mu_pk
                 s_r[dead] = math.log(sig_pk) + np.linspace(-0.7, 0.7, int(dead.sum()))
                 starts.append((mu_r, s_r))
-        sols = [_solve(prob, mu0, s0, st.max_nfev) for mu0, s0 in starts]
+        sols = [solve(prob, mu0, s0, st.max_nfev) for mu0, s0 in starts]
         best = min(sols, key=lambda x: x.cost)
         if warm >= 0 and sols[warm].cost <= (1.0 + CONTINUATION_SLACK) * best.cost:
             best = sols[warm]  # the warm start, unless another basin is clearly better
         # more lobes only where needed
         while k < k_max:
-            g, _, _ = _basis(local, best.mu, best.s)
+            g, _, _ = basis(local, best.mu, best.s)
             resid = y - (g * sq[:, None]) @ best.w
             if math.sqrt(best.cost) / float(np.linalg.norm(y)) <= st.refine_above:
                 break
-            mu_n, sig_n = _peak(local, np.maximum(resid, 0.0), sq)
-            bigger = _VarPro(local, sq, y, k + 1, fix_mu)
+            mu_n, sig_n = peak(local, np.maximum(resid, 0.0), sq)
+            bigger = VarPro(local, sq, y, k + 1, fix_mu)
             seeds = [(np.append(best.mu, 0.0 if fix_mu else mu_n), np.append(best.s, math.log(max(sig_n, SIGMA_LO))))]
             big = int(np.argmax(best.w))  # or split the heaviest lobe across the plane of incidence
             half = 0.5 * math.exp(best.s[big]) * (0.0 if fix_mu else 1.0)
@@ -343,7 +158,7 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
             seeds.append((mu_split, np.append(best.s, best.s[big])))
             if prev_full is not None and prev_full.mu.size == k + 1:
                 seeds.append((prev_full.mu, prev_full.s))
-            cand = min((_solve(bigger, m0, s0, st.max_nfev) for m0, s0 in seeds), key=lambda x: x.cost)
+            cand = min((solve(bigger, m0, s0, st.max_nfev) for m0, s0 in seeds), key=lambda x: x.cost)
             if cand.cost >= 0.98 * best.cost:
                 break
             best, k = cand, k + 1
@@ -353,7 +168,7 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
         # the continuation carries the K heaviest lobes: extra lobes are re-added only where needed
         prev_full = best
         keep = np.sort(np.argsort(-best.w, kind="stable")[: st.lobes])
-        prev = _Solution(mu=best.mu[keep], s=best.s[keep], w=best.w[keep], cost=best.cost)
+        prev = Solution(mu=best.mu[keep], s=best.s[keep], w=best.w[keep], cost=best.cost)
     k_max = int(used.max())  # as many slots as the most lobes any elevation needed
     mus, ss = np.zeros((st.elevations, k_max)), np.zeros((st.elevations, k_max))
     ws = np.zeros((st.elevations, k_max, 3))
@@ -361,9 +176,9 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
         t, sq = slices[i]
         best, k, fix_mu = bests[i], int(used[i]), probs[i].fix_mu
         mu, s = best.mu, best.s
-        phi = _basis(local, mu, s)[0] * sq[:, None]
-        w = _channels_weights(phi, sq, t)
-        mu, s, w = _merge(mu, s, w)
+        phi = basis(local, mu, s)[0] * sq[:, None]
+        w = channel_weights(phi, sq, t)
+        mu, s, w = merge_duplicates(mu, s, w)
         if fix_mu:
             mu = np.zeros_like(mu)
         mu_full = np.concatenate([mu, np.zeros(k_max - k)])
@@ -372,18 +187,18 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
         if i == 0:
             order = np.lexsort((mu_full, -s_full - 1e3 * (w_full.sum(axis=1) > 0)))
         else:
-            order = _match(mus[i - 1], ss[i - 1], ws[i - 1].sum(axis=1), mu_full, s_full, w_full.sum(axis=1))
+            order = match_lobes(mus[i - 1], ss[i - 1], ws[i - 1].sum(axis=1), mu_full, s_full, w_full.sum(axis=1))
             if k_max <= MAX_PERMUTED_LOBES:
                 mid_t, mid_sq = _slice_at(brdf, grid, 0.5 * float(thetas[i - 1] + th))
-                order = _best_permutation(local, mid_sq, mid_t, (mus[i - 1], ss[i - 1], ws[i - 1]),
+                order = best_permutation(local, mid_sq, mid_t, (mus[i - 1], ss[i - 1], ws[i - 1]),
                                           (mu_full, s_full, w_full), order)
         mus[i], ss[i], ws[i] = mu_full[order], s_full[order], w_full[order]
-        errors[i] = _error(local, sq, t, mus[i], ss[i], ws[i])
-        g_below = _basis(local, mus[i], ss[i])[0] @ ws[i]
+        errors[i] = relative_error(local, sq, t, mus[i], ss[i], ws[i])
+        g_below = basis(local, mus[i], ss[i])[0] @ ws[i]
         z = grid.world(float(th))[:, 2]
         tot_fit = float(grid.weights @ g_below.sum(axis=1))
         leak[i] = float(grid.weights @ np.where(z <= 0.0, g_below.sum(axis=1), 0.0)) / tot_fit if tot_fit else 0.0
-    _pin_dead(mus, ss, ws)
+    pin_dead(mus, ss, ws)
     if thetas[0] == 0.0:
         mus[0] = 0.0  # mu = 0 at normal view by symmetry, dead lobes included (they only fade in from there)
     mid = _mid_errors(brdf, grid, thetas, mus, ss, ws)
@@ -419,52 +234,6 @@ def _slice_at(brdf: Any, grid: SliceGrid, theta: float) -> tuple[FloatArray, Flo
     return (np.repeat(t, 3, axis=1) if t.shape[1] == 1 else t), np.sqrt(grid.weights * valid)
 
 
-def _pinned_mid(a: tuple[FloatArray, FloatArray, FloatArray], b: tuple[FloatArray, FloatArray, FloatArray]
-                ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Parameters half-way between two elevations, a dead lobe taking its live partner's (mu, sigma) first."""
-    (ma, sa, wa), (mb, sb, wb) = a, b
-    dead_a = wa.sum(axis=1) <= 0.0
-    dead_b = wb.sum(axis=1) <= 0.0
-    ma, sa = np.where(dead_a, mb, ma), np.where(dead_a, sb, sa)
-    mb, sb = np.where(dead_b, ma, mb), np.where(dead_b, sa, sb)
-    return 0.5 * (ma + mb), np.log(0.5 * (np.exp(sa) + np.exp(sb))), 0.5 * (wa + wb)
-
-
-def _best_permutation(local: FloatArray, sq: FloatArray, t: FloatArray, prev: tuple[FloatArray, FloatArray, FloatArray],
-                      cur: tuple[FloatArray, FloatArray, FloatArray], start: NDArray[np.intp]) -> NDArray[np.intp]:
-    """The order of this elevation's lobes whose interpolation with the previous elevation fits the mid-elevation
-    slice best (every permutation tried; ``start``, the parameter-distance matching, wins ties)."""
-    best, best_err = start, _error(local, sq, t, *_pinned_mid(prev, (cur[0][start], cur[1][start], cur[2][start])))
-    for perm in itertools.permutations(range(start.size)):
-        p = np.asarray(perm, dtype=np.intp)
-        e = _error(local, sq, t, *_pinned_mid(prev, (cur[0][p], cur[1][p], cur[2][p])))
-        if e < best_err * (1.0 - 1e-9):
-            best, best_err = p, e
-    return best
-
-
-def _pin_dead(mus: FloatArray, ss: FloatArray, ws: FloatArray) -> None:
-    """A lobe with no weight at an elevation takes its (mu, sigma) from the nearest elevation where it lives."""
-    n, k_max = mus.shape
-    lum = ws.sum(axis=2)
-    tot = lum.sum(axis=1, keepdims=True)
-    alive = lum > DEAD_FRACTION * np.maximum(tot, 1e-300)
-    for k in range(k_max):
-        idx = np.flatnonzero(alive[:, k])
-        for i in np.flatnonzero(~alive[:, k]):
-            if idx.size:
-                # the nearest elevation where it lives; on a tie the heavier side (the interval where the lobe
-                # matters more interpolates without moving it; the lighter one fades it in place)
-                dist = np.abs(idx - i).astype(np.float64)
-                near = idx[dist == dist.min()]
-                j = near[np.argmax(lum[near, k])]
-                mus[i, k], ss[i, k] = mus[j, k], ss[j, k]
-            else:
-                big = int(np.argmax(lum[i]))
-                mus[i, k], ss[i, k] = mus[i, big], ss[i, big]
-            ws[i, k] = 0.0
-
-
 def _mid_errors(brdf: Any, grid: SliceGrid, thetas: FloatArray, mus: FloatArray, ss: FloatArray,
                 ws: FloatArray) -> FloatArray:
     """Error at each mid-elevation with parameters interpolated linearly (sigma linearly, as a texture does)."""
@@ -479,7 +248,7 @@ def _mid_errors(brdf: Any, grid: SliceGrid, thetas: FloatArray, mus: FloatArray,
         mu = 0.5 * (mus[i] + mus[i + 1])
         s = np.log(0.5 * (sig[i] + sig[i + 1]))
         w = 0.5 * (ws[i] + ws[i + 1])
-        out[i] = _error(grid.local, sq, t, mu, s, w)
+        out[i] = relative_error(grid.local, sq, t, mu, s, w)
     return out
 
 
