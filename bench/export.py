@@ -4,7 +4,7 @@ The chain: a 1024 x 512 map (default ``data/envmaps/city.exr``, a sun at 3.4e4 x
 5 levels cmgen 1.9.25 writes at that size (256 ... 16, perceptual roughness 0, 0.134, 0.293, 0.5, 1: the
 quadratic lod mapping, which is relight's ``--target filament --levels 5``; the roughness cmgen prints per level
 is parsed and checked). Both sides are measured against one reference: the angular brute force of the split-sum
-GGX lobe (``relight.cube_chain.brute_force``, every pixel of the map) at ``--texels`` random texels per level, the
+GGX lobe (``relight.cap_convolution.brute_force``, every pixel of the map) at ``--texels`` random texels per level, the
 same directions for both.
 
 cmgen's cube is rotated against relight's frame: its (default, mirrored) texel for OpenGL direction d shows the
@@ -90,7 +90,8 @@ def main() -> None:
         raise SystemExit("cmgen is not installed (Debian: apt-get install libfilament-tools)")
 
     from relight.brdf.splitsum import GGXSplitSum
-    from relight.cube_chain import brute_force, prefilter_chain
+    from relight.cap_convolution import brute_force
+    from relight.cube_chain import prefilter_chain
     from relight.envmap import cube_face_dirs, read_envmap
     from relight.envmap.exr import write_exr
 

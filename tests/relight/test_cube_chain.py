@@ -13,32 +13,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sky_refs import sun_sky
 
 from relight.brdf.splitsum import GGXSplitSum
-from relight.conventions import LUMINANCE_WEIGHTS, latlong_dirs
-from relight.cube_chain import (
-    BABYLON_LOD_SCALE,
-    TARGET_MAPPING,
-    _WindowedLobe,
-    angular_convolution,
-    brute_force,
-    level_roughness,
-    prefilter_chain,
-)
+from relight.cap_convolution import brute_force
+from relight.conventions import LUMINANCE_WEIGHTS
+from relight.cube_chain import BABYLON_LOD_SCALE, TARGET_MAPPING, level_roughness, prefilter_chain
 from relight.envmap import cube_face_dirs, read_envmap
 from relight.errors import InputError
 
 ENVMAPS = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 #: The issue's per-level limit.
 LEVEL_RMS = 0.01
-
-
-def sun_sky(h: int) -> np.ndarray:
-    d = latlong_dirs(h, 2 * h)
-    sky = (0.3 + 0.5 * np.clip(d[..., 1:2], 0, 1)) * np.array([0.5, 0.7, 1.0])
-    sun_dir = np.array([0.3, 0.6, -0.74]) / np.linalg.norm([0.3, 0.6, -0.74])
-    sun = (d @ sun_dir > np.cos(0.08))[..., None] * np.array([1.0e4, 0.9e4, 0.8e4])
-    return np.asarray(sky + sun, dtype=np.float64)
 
 
 @cache
@@ -72,33 +58,6 @@ def test_babylon_levels_follow_its_lod_formula() -> None:
         assert r[-1] ** 2 == pytest.approx(size**0.25)  # alpha > 1 at the end of the chain
     with pytest.raises(InputError, match="face size"):
         level_roughness(5, "log2")
-
-
-@pytest.mark.parametrize("theta1_pixels", [3.0, 12.0, 40.0])
-def test_near_sum_backends_equal_the_dense_pixel_sum(theta1_pixels: float) -> None:
-    # The compiled and the vectorised near sums against the dense sum over every pixel (the same quadrature, so
-    # they differ only by the tabulated kernel, ~1e-7 here, and summation order). Directions: cube texel centres,
-    # the exact poles and the seam at phi = +-pi, caps from a few pixels to one covering a pole (40 px of 32 rows).
-    px = sun_sky(32)
-    h = px.shape[0]
-    theta1 = theta1_pixels * np.pi / h
-    lobe = _WindowedLobe(GGXSplitSum(0.15), 0.5 * theta1, theta1, near=True)
-    dirs = np.concatenate([cube_face_dirs(4).reshape(-1, 3),
-                           [[0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 1e-9], [-1.0, 0.3, -1e-9]]])
-    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
-    ref = brute_force(px, lobe, dirs)
-    for backend in ("jit", "numpy"):
-        got = angular_convolution(px, lobe, dirs, theta1, backend=backend)  # type: ignore[arg-type]
-        np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-6 * np.abs(ref).max(), err_msg=backend)
-
-
-def test_near_and_far_parts_sum_to_the_lobe() -> None:
-    lobe = GGXSplitSum(0.1)
-    t = np.cos(np.linspace(0.0, np.pi, 2001))
-    near = _WindowedLobe(lobe, 0.02, 0.04, near=True).u(t)
-    far = _WindowedLobe(lobe, 0.02, 0.04, near=False).u(t)
-    np.testing.assert_allclose(near + far, lobe.u(t), rtol=1e-13, atol=0.0)
-    assert np.all(near[np.arccos(t) > 0.04] == 0.0)
 
 
 @pytest.mark.parametrize(("name", "pixels", "size"), [("sun-sky", lambda: sun_sky(32), 16),
