@@ -1,7 +1,7 @@
 """Header probing: format, size and channel count of an image file without decoding a pixel.
 
 The format comes from the magic bytes (:func:`relight.envmap.formats.sniff`); the header from the format's
-reader: :func:`relight.envmap.exr.parse_header` (hand-written, the pre-decode bound), the Radiance header
+reader: :func:`relight.envmap.exr_header.parse_header` (hand-written, the pre-decode bound), the Radiance header
 parser (:func:`relight.envmap.rgbe.parse_header`), or Pillow's lazy PNG / JPEG plugins
 (:func:`relight.envmap.ldr.read_header`). Upload safety: call :func:`probe` and check the size
 (:func:`relight.envmap.formats.check_max_pixels`) before decoding anything untrusted.
@@ -13,7 +13,7 @@ import io
 import os
 from typing import IO, Final
 
-from relight.envmap import exr, rgbe
+from relight.envmap import exr_header, rgbe
 from relight.envmap.formats import ACCEPTED, ImageHeader, NeedMoreData, Source, sniff
 from relight.errors import InputError
 
@@ -89,5 +89,5 @@ def _sniff_or_raise(buf: bytes) -> str:
 def _parse(buf: bytes, fmt: str, *, complete: bool) -> ImageHeader:
     """EXR or HDR header; :class:`NeedMoreData` when ``buf`` ends inside it."""
     if fmt == "exr":
-        return exr.parse_header(buf).image
+        return exr_header.parse_header(buf).image
     return rgbe.parse_header(buf, complete=complete).image
