@@ -9,7 +9,8 @@ y = bitangent, z = normal), ``views`` (R x R x 3, the unit local view of each te
 Prints one JSON line (the manifest). Errors raise ``InputError`` (exit status 2, one line).
 
     relight render --table TABLE.npz|.exr --envmap MAP [--cap X,Y,Z,SR,R,G,B ...] [--window hann|lanczos]
-                   [--tangent azimuthal[:X,Y,Z]|project:X,Y,Z] [--mesh NAME [--transfer SHADOW.npz]]
+                   [--tangent azimuthal[:X,Y,Z]|project:X,Y,Z]
+                   [--mesh NAME [--transfer SHADOW.npz | --bounces B [--rays R]]]
                    --view X,Y,Z --size N --out OUT.exr [--png PREVIEW.png]
 
 shades the unit sphere (per pixel) or a mesh (per vertex, interpolated: the GPU path's Gouraud shading) with the
@@ -17,7 +18,8 @@ table (seed 003 §4, ``relight.sh_render``): the map's real SH coefficients to t
 lights in closed form, optionally windowed (the relative L2 change of the lighting is printed as its cost), the
 lighting rotated into each point's frame (``--tangent``; default the azimuthal field about +Y). ``--transfer``:
 shadow matrices from ``relight visibility MESH --kind shadow_matrix`` of the same mesh, folded with the rotation
-(PRT, §5, ``relight.sh_prt``).
+(PRT, §5, ``relight.sh_prt``). ``--bounces B``: shadows and B interreflection bounces with the table's BRDF
+(``relight.sh_prt_bounce``, ``--rays`` per vertex), computed for the mesh here.
 """
 
 from __future__ import annotations
@@ -103,8 +105,8 @@ def render_table(args: argparse.Namespace) -> int:
     view /= np.linalg.norm(view)
     tangent = parse_tangent(args.tangent)
     if args.mesh is None:
-        if args.transfer is not None:
-            raise InputError("--transfer needs --mesh (the shadow matrices belong to a mesh's vertices)")
+        if args.transfer is not None or args.bounces is not None:
+            raise InputError("--transfer and --bounces need --mesh (transfer belongs to a mesh's vertices)")
         img = render_sphere(table, light, view, args.size, tangent=tangent, supersample=args.supersample,
                             exact_azimuth=False)
     else:
@@ -113,7 +115,19 @@ def render_table(args: argparse.Namespace) -> int:
 
         mesh = load_mesh(args.mesh)
         frames = frames_for(mesh.normals, tangent)
-        if args.transfer is not None:
+        if args.bounces is not None:
+            if args.transfer is not None:
+                raise InputError("--bounces computes the interreflected transfer itself; drop --transfer")
+            from relight.sh_prt import folded_transfer, shade_prt
+            from relight.sh_prt_bounce import BounceSettings, vertex_transfer
+
+            settings = BounceSettings(rays=args.rays, bounces=args.bounces)
+            total = vertex_transfer(table, mesh, frames, settings).total()
+            vertex = shade_prt(table, light, frames, view, folded_transfer(frames, total, table.order),
+                               exact_azimuth=False)
+            report["shadows"] = "transfer"
+            report["interreflections"] = {"bounces": settings.bounces, "rays": settings.rays}
+        elif args.transfer is not None:
             from relight.sh_prt import folded_transfer, shade_prt
 
             with np.load(args.transfer, allow_pickle=False) as z:
@@ -154,6 +168,9 @@ def add_render_arguments(rd: argparse.ArgumentParser) -> None:
                     "(default axis +Y) or project:X,Y,Z (a constant brushing direction)")
     rd.add_argument("--transfer", help="shadow matrices .npz of --mesh ('relight visibility --kind shadow_matrix') "
                     "for --table: PRT shadows")
+    rd.add_argument("--bounces", type=int, help="--table --mesh: PRT shadows and this many interreflection "
+                    "bounces with the table's BRDF (relight.sh_prt_bounce; computed here with --rays per vertex, "
+                    "no --transfer)")
 
 
 #: ``relight.sh_table``'s defaults, repeated so that registering the command imports nothing numerical

@@ -10,7 +10,8 @@ suggests, the rotation is folded into the matrix once (§5 "As an optimization")
 
 so per frame ``Q_p = c(F_p v) . (T'_p L')``: one (n x n) matrix-vector product per vertex and channel, the
 lighting and the view both free. The BRDF is not part of ``T_p`` (shadows only), so the table can be swapped on
-the fly. Interreflections (a BRDF-dependent transfer) are not implemented here.
+the fly. Interreflections (a BRDF-dependent transfer, one matrix per colour channel: (V, n, n, C)) are
+``relight.sh_prt_bounce``; both functions here take such matrices as well.
 
 Identity (tests/relight/test_sh_prt.py): with the same ray directions w_s and weights, for lighting band-limited
 to the table's order, ``Q_p = (4 pi / R) sum_s V_p(w_s) L(w_s) f*_F(F_p w_s, F_p v)`` exactly (``f*_F`` the
@@ -32,30 +33,37 @@ FloatArray = NDArray[np.float64]
 
 def folded_transfer(frames: ArrayLike, transfer: ArrayLike, order: int) -> FloatArray:
     """``T'_p = S M(R_p) T_p`` (V, n, n) for frames (V, 3, 3) (rows t, b, n) and world transfer matrices
-    (V, n', n') with n' >= n = (order + 1)^2 (the leading n x n block is used: the lighting is order F)."""
+    (V, n', n') with n' >= n = (order + 1)^2 (the leading n x n block is used: the lighting is order F); with a
+    trailing channel axis (V, n', n', C) (interreflected transfer) the result is (V, n, n, C)."""
     f = np.asarray(frames, dtype=np.float64)
     t = np.asarray(transfer, dtype=np.float64)
     n = (order + 1) ** 2
-    if t.ndim != 3 or t.shape[1] != t.shape[2] or t.shape[1] < n or t.shape[0] != f.shape[0]:
+    if t.ndim not in (3, 4) or t.shape[1] != t.shape[2] or t.shape[1] < n or t.shape[0] != f.shape[0]:
         raise InputError(f"transfer must be (V, >= {n}, >= {n}) for {f.shape[0]} frames, got shape {t.shape}")
     rot = block_diagonal(local_rotations(f, order))  # (V, n, n)
+    if t.ndim == 4:
+        return np.asarray(np.einsum("vij,vjkc->vikc", rot, t[:, :n, :n]), dtype=np.float64)
     return np.asarray(rot @ t[:, :n, :n], dtype=np.float64)
 
 
 def shade_prt(table: SHTable, lighting: ArrayLike, frames: ArrayLike, view: ArrayLike, folded: ArrayLike, *,
               exact_azimuth: bool = True) -> FloatArray:
     """Radiance (V, 3) toward the distant view (3,) at vertices with frames (V, 3, 3) and folded transfer matrices
-    (V, n, n) (:func:`folded_transfer`), for world lighting ((F'+1)^2, 3), F' >= the table's order."""
+    (V, n, n) or (V, n, n, C) (:func:`folded_transfer`), for world lighting ((F'+1)^2, 3), F' >= the table's
+    order."""
     f = np.asarray(frames, dtype=np.float64)
     light = np.asarray(lighting, dtype=np.float64)
     tp = np.asarray(folded, dtype=np.float64)
     n = (table.order + 1) ** 2
     if light.ndim != 2 or light.shape[0] < n or light.shape[1] != 3:
         raise InputError(f"lighting must be (>= {n}, 3) real coefficients, got shape {light.shape}")
-    if tp.shape != (f.shape[0], n, n):
-        raise InputError(f"folded transfer must be ({f.shape[0]}, {n}, {n}), got shape {tp.shape}")
+    if tp.shape[:3] != (f.shape[0], n, n) or tp.ndim not in (3, 4) or (tp.ndim == 4 and tp.shape[3] not in (1, 3)):
+        raise InputError(f"folded transfer must be ({f.shape[0]}, {n}, {n}[, C]), got shape {tp.shape}")
     vl = np.einsum("nij,j->ni", f, np.asarray(view, dtype=np.float64))
     coeffs = table.lookup(vl, exact_azimuth=exact_azimuth)  # (V, n, C)
-    local = np.einsum("vij,jc->vic", tp, light[:n])
+    if tp.ndim == 4:  # per-channel transfer: channel c of the lighting through matrix c
+        local = np.einsum("vijc,jc->vic", np.broadcast_to(tp, tp.shape[:3] + (3,)), light[:n])
+    else:
+        local = np.einsum("vij,jc->vic", tp, light[:n])
     out = np.einsum("vic,vic->vc", local, np.broadcast_to(coeffs, coeffs.shape[:2] + (3,)))
     return np.where((vl[:, 2] > 0.0)[:, None], out, 0.0)
