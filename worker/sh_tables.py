@@ -3,7 +3,8 @@
 Files: ``table.npz`` (``relight.sh_table.write_table``: float32 ``coefficients`` R x R x (F+1)^2 x C, ``views``,
 ``valid``, ``manifest``) and ``table.bin`` (the viewer's texture: little-endian float16 ``[(F+1)^2, R, R, C]``,
 values beyond 65504 clamped and counted in the manifest's ``float16_clamped``). The result is the manifest (order,
-layout, resolution, BRDF, seconds) plus the files.
+layout, resolution, BRDF, seconds) plus the files. A measured BRDF arrives as ``{"kind": "merl", "sha256": ...}``
+and is read from the blob store (``relight.worker.specs``).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from relight.worker.progress import JobContext
+from relight.worker.specs import from_core, to_core
 
 OCTET = "application/octet-stream"
 
@@ -25,8 +27,9 @@ def compute_sh_table(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]
     from relight.sh_table import build_table, write_table
 
     ctx.report("tabulating", 0.05)
-    table = build_table(parse_frame_brdf(request["brdf"]), order=int(request["order"]),
+    table = build_table(parse_frame_brdf(to_core(request["brdf"], ctx.store)), order=int(request["order"]),
                         resolution=int(request["resolution"]), layout=str(request["layout"]))
+    table.brdf = from_core(table.brdf, ctx.store)  # no blob path in the manifest or the file
     ctx.report("writing", 0.9)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "table.npz"
