@@ -2,8 +2,8 @@
 
 For each sample map (area-averaged to ``--rows`` rows), BRDF and tolerance:
 
-* **before**: the orders of App. C's whole-lobe search (``relight.brdf.lpq.select_orders``, run in a child process
-  under ``--limit`` seconds), ``F_B = min(F_rho, F_L, H - 1)``, the SHRM's raw expansion (no clamp), and the one
+* **before**: the orders of App. C's whole-lobe search (``relight.brdf.lpq_search.select_orders``, run in a child
+  process under ``--limit`` seconds), ``F_B = min(F_rho, F_L, H - 1)``, the SHRM's raw expansion (no clamp), and the one
   figure the report had: ``rms_min_of_errors`` (and App. B's ``rms_appendix_b``) for the whole light field;
 * **after**: ``create_shrm(epsilon=...)`` with the view-band search (N.V >= 0.1), clamped radiance, and the
   report's per-band ``rms`` / ``rms_average`` / ``rms_appendix_b`` (``relight.shrm.view_bands``).
@@ -36,10 +36,10 @@ EPSILONS = (0.1, 0.01)
 
 
 def _old_child(spec: str, eps: float, out: Any) -> None:
-    from relight.brdf import lpq
+    from relight.brdf import lpq_search
     from relight.brdf.spec import parse_brdf
 
-    sel = lpq.select_orders(parse_brdf(spec), eps)
+    sel = lpq_search.select_orders(parse_brdf(spec), eps)
     out.put((sel.F, sel.P, sel.met))
 
 

@@ -1,6 +1,6 @@
 """Order search time for the cases of issue 18 ("tight tolerances cost minutes and then fail"): the view-band search
 (``relight.shrm.order_search``, the tolerance held in every band with N.V >= 0.1) against App. C's whole-lobe search
-(``relight.brdf.lpq.select_orders``), each from a cold cache, side by side in one run.
+(``relight.brdf.lpq_search.select_orders``), each from a cold cache, side by side in one run.
 
 Before issue 18 the whole-lobe search ran to the caps (F = 511..1024, P = 16) for 60–111 s and reported "not met"
 for microfacet sigma = 0.1 and 0.3 at epsilon = 1e-3 and GGX alpha = 0.1 at 0.01, and did not finish in 180 s for
@@ -31,10 +31,11 @@ CASES: list[tuple[str, float]] = [
 
 
 def _new(spec: str, eps: float) -> dict[str, Any]:
+    from relight.brdf import lobe_cache
     from relight.brdf.spec import parse_brdf
     from relight.shrm import order_search
 
-    order_search.clear_cache()
+    lobe_cache.clear()
     lobe = parse_brdf(spec)
     t = time.perf_counter()
     res = order_search.search_orders(lobe, eps)
@@ -43,12 +44,12 @@ def _new(spec: str, eps: float) -> dict[str, Any]:
 
 
 def _old_child(spec: str, eps: float, out: Any) -> None:
-    from relight.brdf import lpq
+    from relight.brdf import lobe_cache, lpq_search
     from relight.brdf.spec import parse_brdf
 
-    lpq.clear_cache()
+    lobe_cache.clear()
     t = time.perf_counter()
-    sel = lpq.select_orders(parse_brdf(spec), eps)
+    sel = lpq_search.select_orders(parse_brdf(spec), eps)
     out.put({"seconds": time.perf_counter() - t, "F": sel.F, "P": sel.P, "met": sel.met})
 
 

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from relight import metrics, shrm
-from relight.brdf import lpq
+from relight.brdf import lobe_cache, lpq
 from relight.brdf.spec import parse_brdf
 from relight.conventions import latlong_dirs
 from relight.envmap import read_envmap, resample_latlong
@@ -122,7 +122,7 @@ def main() -> None:
         brdf = parse_brdf(f"microfacet:sigma={sigma}")
 
         def scratch(brdf: Any = brdf) -> shrm.SHRM:
-            lpq.clear_cache()
+            lobe_cache.clear()
             return shrm.create_shrm(env, brdf, epsilon=args.epsilon, size=size)
 
         t_scratch, sm = median_time(scratch, args.repeat)

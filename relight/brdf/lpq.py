@@ -1,4 +1,4 @@
-"""BRDF coefficients ``rho_hat_lpq`` of a lobe and the orders (F, P) for a tolerance (seed 000 App. A, App. C).
+"""BRDF coefficients ``rho_hat_lpq`` of a lobe (seed 000 App. A, App. C step 1).
 
 Seed 000 (Ramamoorthi & Hanrahan 2002) expands the reparameterised BRDF ``rho_hat(theta_i, theta_o, phi)``
 (``rho_hat = rho cos(theta_i)``; angles about the lobe's centre C, §3.1) as (App. A, eq. 13)::
@@ -36,11 +36,7 @@ brute-force :func:`rho_lpq_direct`; ``tests/relight/test_lpq.py``): about 1e-4 o
 within 2e-4. The floor comes from the jump of rho_hat at the horizon ``N . L = 0`` (e.g. eq. 11 does not vanish
 there), which makes every product rule first order; smooth radial lobes (Phong) reach 1e-13.
 
-Order selection from a tolerance (App. C, step 1, second paragraph): compute the coefficients at generous
-starting orders (F0, P0); if the uncaptured energy ``epsilon(F0, P0)`` meets the tolerance, reduce P as far as the
-tolerance still holds at F0, then reduce F at that P; if not, grow (F0, P0) and repeat. ``epsilon(F, P) =
-1 - sum_{l<=F, p<=P} E_lp / E_tot`` with ``E_tot = int int rho_hat^2`` integrated directly on the grid (not the sum
-of the computed coefficients), maximum over colour channels.
+The order search over these coefficients (App. C) is ``relight.brdf.lpq_search``.
 """
 
 from __future__ import annotations
@@ -51,11 +47,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from cachetools import LRUCache
 from numpy.typing import NDArray
 
 from relight import sh, validate
 from relight.brdf.base import Lobe, RadialLobe
 from relight.brdf.coefficients import lambda_l, radial_transfer
+from relight.brdf.lobe_cache import lobe_cache, lobe_cache_key
 
 FloatArray = NDArray[np.float64]
 
@@ -207,7 +205,7 @@ class BRDFCoefficients:
         )
 
 
-def _as_channels(val: NDArray[Any], shape: tuple[int, ...]) -> FloatArray:
+def as_channels(val: NDArray[Any], shape: tuple[int, ...]) -> FloatArray:
     """rho_hat output as (*shape, C) float64 (grey lobes may return (*shape,) or (*shape, 1))."""
     a = np.asarray(val, dtype=np.float64)
     if a.shape == shape:
@@ -257,7 +255,7 @@ def brdf_coefficients(
     for i0 in range(0, n_i, block):
         ti = grid.theta_i[i0 : i0 + block]
         shape = (ti.size, n_o, n_phi)
-        vals = _as_channels(
+        vals = as_channels(
             lobe.rho_hat(ti[:, None, None], grid.theta_o[None, :, None], grid.phi[None, None, :]), shape
         )
         if rho_pq is None:
@@ -330,7 +328,7 @@ def rho_lpq_direct(lobe: Lobe, indices: list[tuple[int, int, int]], *, n: int = 
     ph = (np.arange(2 * n) + 0.5) * np.pi / n
     sin_dt = np.sin(t) * (np.pi / n)
     vals = np.stack(
-        [_as_channels(lobe.rho_hat(np.full((n, 2 * n), ti), t[:, None], ph[None, :]), (n, 2 * n)) for ti in t]
+        [as_channels(lobe.rho_hat(np.full((n, 2 * n), ti), t[:, None], ph[None, :]), (n, 2 * n)) for ti in t]
     )  # (n_i, n_o, n_phi, C)
     out = []
     for l, p, q in indices:
@@ -341,126 +339,10 @@ def rho_lpq_direct(lobe: Lobe, indices: list[tuple[int, int, int]], *, n: int = 
     return np.asarray(out, dtype=np.float64)
 
 
-def lobe_width(lobe: Lobe) -> float:
-    """Angle from the centre where the lobe's phi-averaged magnitude at theta_o = 0 first drops below 1e-2 of peak.
-
-    Only used to pick the starting order F0 of :func:`select_orders`.
-    """
-    theta = np.concatenate([np.geomspace(1e-4, 0.05, 60), np.linspace(0.05, np.pi, 300)])
-    phi = (np.arange(8) + 0.5) * np.pi / 8
-    vals = _as_channels(lobe.rho_hat(theta[:, None], np.zeros((1, 1)), phi[None, :]), (theta.size, phi.size))
-    mag = np.abs(vals).mean(axis=1).max(axis=-1)
-    peak = float(mag.max())
-    if not np.isfinite(peak) or peak <= 0.0:
-        return float(np.pi)
-    above = np.nonzero(mag >= 1e-2 * peak)[0]
-    return float(theta[above[-1]]) if above.size else float(np.pi)
-
-
-@dataclass(frozen=True)
-class OrderSelection:
-    """Result of :func:`select_orders`: the chosen (F, P), the coefficients at the probe orders, the history."""
-
-    F: int
-    P: int
-    epsilon_achieved: float
-    met: bool
-    coefficients: BRDFCoefficients  # at the last probe orders (>= F, P)
-    history: list[dict[str, Any]]
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "F_rho": self.F,
-            "P_rho": self.P,
-            "epsilon_brdf": self.epsilon_achieved,
-            "tolerance_met": self.met,
-            "probes": self.history,
-        }
-
-
-def starting_orders(lobe: Lobe) -> tuple[int, int]:
-    """(F0, P0) for :func:`select_orders`.
-
-    ``F0 = clamp(12 / width, 8, 64)`` with the lobe width of :func:`lobe_width` (about 1.2 F for a Gaussian lobe,
-    whose F ~ 1 / sigma, §7.1); ``P0`` = 0 for radially symmetric lobes, 8 for azimuthally symmetric ones (cheap:
-    no phi samples; Kajiya–Kay needs P ~ 8, §7.1), 4 otherwise (§5.2: P <= 3 suffices for most BRDFs).
-    """
-    f0 = int(np.clip(math.ceil(12.0 / max(lobe_width(lobe), 1e-3)), 8, 64))
-    p0 = 0 if lobe.radially_symmetric else (8 if lobe.azimuthally_symmetric else 4)
-    return f0, p0
-
-
-def select_orders(
-    lobe: Lobe,
-    epsilon: float,
-    *,
-    start: tuple[int, int] | None = None,
-    f_cap: int = 1024,
-    p_cap: int = 16,
-    oversample: float = 1.0,
-) -> OrderSelection:
-    """Smallest (F, P) with ``epsilon(F, P) <= epsilon``, found as seed 000 App. C describes.
-
-    Start at (F0, P0) (:func:`starting_orders`); while the tolerance fails at the probe orders, grow them: F0
-    doubles when the top quarter of its bands (l > 3 F0 / 4) still holds more than a tenth of the allowed
-    uncaptured energy (the spectrum in l has not decayed), P0 grows by 4 when the same holds for p > 3 P0 / 4, and
-    both grow when neither test points at one of them (within ``f_cap``, ``p_cap``; radially symmetric lobes keep
-    P = 0). Then shrink P as far as ``epsilon(F0, P) <= epsilon`` holds, and then F at that P. If the caps are
-    reached first the caps are returned with ``met = False``.
-    """
-    validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
-    f0, p0 = start if start is not None else starting_orders(lobe)
-    if lobe.radially_symmetric:
-        p0 = 0
-    f0, p0 = min(f0, f_cap), min(p0, p_cap)
-    history: list[dict[str, Any]] = []
-    while True:
-        coeffs = brdf_coefficients(lobe, f0, p0, oversample=oversample)
-        table = coeffs.epsilon_table()
-        history.append({"F": f0, "P": p0, "epsilon": float(table[f0, p0]), "grid": list(coeffs.grid_shape)})
-        if table[f0, p0] <= epsilon:
-            break
-        can_f, can_p = f0 < f_cap, p0 < p_cap and not lobe.radially_symmetric
-        if not (can_f or can_p):
-            return OrderSelection(f0, p0, float(table[f0, p0]), False, coeffs, history)
-        e_lp = coeffs.band_energy().max(axis=2)
-        threshold = 0.1 * epsilon * float(coeffs.total_energy.max())
-        f_short = float(e_lp[(3 * f0) // 4 + 1 :, :].sum()) > threshold
-        p_short = float(e_lp[:, (3 * p0) // 4 + 1 :].sum()) > threshold
-        grow_f = can_f and (f_short or not p_short or not can_p)
-        grow_p = can_p and (p_short or not f_short or not can_f)
-        if grow_f:
-            f0 = min(2 * f0, f_cap)
-        if grow_p:
-            p0 = min(p0 + 4, p_cap)
-    p_sel = int(np.nonzero(table[f0, :] <= epsilon)[0][0])
-    f_sel = int(np.nonzero(table[:, p_sel] <= epsilon)[0][0])
-    return OrderSelection(f_sel, p_sel, float(table[f_sel, p_sel]), True, coeffs, history)
-
-
 # ------------------------------------------------------------------------------------------------- caching
 #: BRDF coefficients depend on the lobe only, not on the lighting (App. C: "not the dominant cost"); a small
 #: in-process cache keyed by the lobe's canonical spec lets repeated prefilters skip step 1.
-_CACHE_SIZE = 32
-_coeff_cache: dict[str, BRDFCoefficients] = {}
-_select_cache: dict[str, OrderSelection] = {}
-
-
-def lobe_cache_key(lobe: Lobe, *parts: Any) -> str | None:
-    """The cache key of a lobe and its parameters (the lobe's JSON spec), shared by the order searches' caches."""
-    import json
-
-    try:
-        return json.dumps([type(lobe).__qualname__, lobe.spec(), *parts], sort_keys=True)
-    except (TypeError, ValueError):
-        return None  # a lobe without a JSON spec is never cached
-
-
-def remember(cache: dict[str, Any], key: str, value: Any) -> None:
-    """Insert into a bounded cache, dropping the oldest entry at ``_CACHE_SIZE``."""
-    if len(cache) >= _CACHE_SIZE:
-        cache.pop(next(iter(cache)))
-    cache[key] = value
+_coeff_cache: LRUCache[str, BRDFCoefficients] = lobe_cache()
 
 
 def cached_coefficients(lobe: Lobe, f_order: int, p_order: int) -> tuple[BRDFCoefficients, bool]:
@@ -470,23 +352,5 @@ def cached_coefficients(lobe: Lobe, f_order: int, p_order: int) -> tuple[BRDFCoe
         return _coeff_cache[key], True
     coeffs = brdf_coefficients(lobe, f_order, p_order)
     if key is not None:
-        remember(_coeff_cache, key, coeffs)
+        _coeff_cache[key] = coeffs
     return coeffs, False
-
-
-def cached_select_orders(lobe: Lobe, epsilon: float) -> tuple[OrderSelection, bool]:
-    """:func:`select_orders` through the cache; returns (selection, whether it was a cache hit)."""
-    key = lobe_cache_key(lobe, epsilon)
-    if key is not None and key in _select_cache:
-        return _select_cache[key], True
-    sel = select_orders(lobe, epsilon)
-    if key is not None:
-        remember(_select_cache, key, sel)
-    return sel, False
-
-
-def clear_cache() -> None:
-    """Forget every cached coefficient set (for timings that must include step 1)."""
-    _coeff_cache.clear()
-    _select_cache.clear()
-

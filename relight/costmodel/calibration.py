@@ -217,7 +217,7 @@ def calibrate(*, repeat: int = 3, quick: bool = False, seed: int = 0) -> Calibra
 
     ``quick`` drops the largest runs (for tests). Stage timings are the best of ``repeat`` runs.
     """
-    from relight.brdf import lpq
+    from relight.brdf import lobe_cache
     from relight.brdf.models import Microfacet, SumBRDF
     from relight.brdf.radial import Lambert, Phong
     from relight.prefilter import prefilter_radial
@@ -255,7 +255,7 @@ def calibrate(*, repeat: int = 3, quick: bool = False, seed: int = 0) -> Calibra
         reps = []
         shrm_obj = None
         for _ in range(repeat):
-            lpq.clear_cache()
+            lobe_cache.clear()
             shrm_obj = create_shrm(px, brdf, order=f, p_order=p, epsilon=eps, size=s)
             stages = report_stages(shrm_obj.report["timings"])
             stages["view"], _ = _best(functools.partial(reflect, shrm_obj, view), 1)  # fresh: eq. 8 included

@@ -86,13 +86,13 @@ def tabulation_points(f_order: int, p_order: int, *, radial: bool, azimuthal: bo
 def probe_orders(lobe: Lobe, f_order: int, p_order: int, *, explicit: bool) -> list[tuple[int, int]]:
     """The (F, P) at which the BRDF coefficients are tabulated to reach (F, P).
 
-    Explicit orders: just (F, P). From a tolerance (``relight.brdf.lpq.select_orders``): the starting orders, then
-    both grown (F doubles, P + 4) until they cover (F, P) — the path the search takes when neither order alone
+    Explicit orders: just (F, P). From a tolerance (``relight.brdf.lpq_search.select_orders``): the starting orders,
+    then both grown (F doubles, P + 4) until they cover (F, P) — the path the search takes when neither order alone
     is short, an estimate (the search stops at the first probe meeting the tolerance).
     """
     if explicit:
         return [(f_order, p_order)]
-    from relight.brdf.lpq import starting_orders
+    from relight.brdf.lpq_search import starting_orders
 
     f0, p0 = starting_orders(lobe)
     if lobe.radially_symmetric:
@@ -133,7 +133,7 @@ def brdf_features(
     """BRDF coefficient stage of one lobe (module docstring): ``lobe1d`` for radial lobes, else tabulation.
 
     ``search`` names the order search a tolerance runs: ``"radial"`` (``prefilter_radial``'s
-    ``spectrum_for_tolerance``) or ``"lpq"`` (``create_shrm``'s ``lpq.select_orders``). ``probes`` gives the
+    ``spectrum_for_tolerance``) or ``"lpq"`` (App. C's whole-lobe ``lpq_search.select_orders``). ``probes`` gives the
     (F, P) the search actually tabulated (an SHRM report's ``probes``), else they are estimated
     (:func:`radial_probes`, :func:`probe_orders`).
     """

@@ -8,8 +8,9 @@
 * **general** isotropic lobe -> the full ``(P + 1)^2``-map SHRM (§4).
 
 Orders follow the core exactly: ``spectrum_for_tolerance`` and ``relight.prefilter.choose_orders`` for radial lobes
-(as ``prefilter_radial``), App. C's search (``lpq.cached_select_orders``) and ``relight.shrm.predicted_errors`` for
-the others (as ``create_shrm``), with ``F_B = min(F_rho, F_L, H - 1)`` (minimum-of-orders rule, §5.1).
+(as ``prefilter_radial``), App. C's whole-lobe search (``lpq_search.cached_select_orders``; ``create_shrm`` searches
+per view band instead, ``relight.shrm.order_search``) and ``relight.shrm.predicted_errors`` for the others, with
+``F_B = min(F_rho, F_L, H - 1)`` (minimum-of-orders rule, §5.1).
 """
 
 from __future__ import annotations
@@ -59,8 +60,8 @@ class LobeChoice:
 
 def choose(lobe: Lobe, epsilon: float) -> LobeChoice:
     """Smallest orders meeting ``epsilon`` for one lobe: ``spectrum_for_tolerance`` for radial lobes (as
-    ``prefilter_radial``), App. C's search (``lpq.cached_select_orders``) otherwise (as ``create_shrm``)."""
-    from relight.brdf import lpq
+    ``prefilter_radial``), App. C's whole-lobe search (``lpq_search.cached_select_orders``) otherwise."""
+    from relight.brdf import lpq_search
     from relight.brdf.coefficients import spectrum_for_tolerance
 
     representation, structure, reason = representation_of(lobe)
@@ -70,7 +71,7 @@ def choose(lobe: Lobe, epsilon: float) -> LobeChoice:
         below = {"F_rho_minus_1": float(eps[f_rho - 1]) if f_rho > 0 else 1.0}
         return LobeChoice(lobe, representation, structure, reason, f_rho, 0, float(eps[min(f_rho, spec.lmax)]),
                           below, None, spec)
-    sel, _ = lpq.cached_select_orders(lobe, epsilon)
+    sel, _ = lpq_search.cached_select_orders(lobe, epsilon)
     table = sel.coefficients.epsilon_table()
     below = {"F_rho_minus_1": float(table[sel.F - 1, sel.P]) if sel.F > 0 else 1.0,
              "P_rho_minus_1": float(table[sel.F, sel.P - 1]) if sel.P > 0 else 1.0}

@@ -33,17 +33,18 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from cachetools import LRUCache
 from numpy.typing import NDArray
 
 from relight.brdf.base import Lobe
 from relight.brdf.coefficients import spectrum_for_tolerance
-from relight.brdf.lpq import lobe_cache_key, remember
+from relight.brdf.lobe_cache import lobe_cache, lobe_cache_key
 from relight.shrm.view_bands import brdf_band_epsilon
 from relight.shrm.view_spectrum import ViewSpectrum, band_edges, view_spectrum
 
 FloatArray = NDArray[np.float64]
 
-#: Caps of the search (as ``relight.brdf.lpq.select_orders``): F <= 1024, P <= 16.
+#: Caps of the search (as ``relight.brdf.lpq_search.select_orders``): F <= 1024, P <= 16.
 F_CAP = 1024
 P_CAP = 16
 #: Largest coefficient-map set an SHRM may need (``relight.shrm.creation.MAX_SHRM_BYTES``; float64 RGB maps).
@@ -55,9 +56,9 @@ ACHIEVABLE_MARGIN = 2.0
 
 
 def starting_order(lobe: Lobe) -> int:
-    """``F0 = clamp(24 / width, 32, 96)`` with the lobe width of ``relight.brdf.lpq.lobe_width`` (twice App. C's
+    """``F0 = clamp(24 / width, 32, 96)`` with the lobe width of ``relight.brdf.lpq_search.lobe_width`` (twice App. C's
     start: the search reads the l-tail beyond the lobe's bulk)."""
-    from relight.brdf.lpq import lobe_width
+    from relight.brdf.lpq_search import lobe_width
 
     return int(np.clip(math.ceil(24.0 / max(lobe_width(lobe), 1e-3)), 32, 96))
 
@@ -234,9 +235,9 @@ def search_orders(
 
 
 # ------------------------------------------------------------------------------------------------- caching
-# the same bounded caches and keys as relight.brdf.lpq's coefficient cache
-_spectra: dict[str, ViewSpectrum] = {}
-_searches: dict[str, BandSearch] = {}
+# bounded caches keyed by the lobe's spec (relight.brdf.lobe_cache; its clear() empties them)
+_spectra: LRUCache[str, ViewSpectrum] = lobe_cache()
+_searches: LRUCache[str, BandSearch] = lobe_cache()
 
 
 def cached_spectrum(lobe: Lobe, f_order: int, p_order: int, edges: tuple[float, ...]) -> ViewSpectrum:
@@ -247,7 +248,7 @@ def cached_spectrum(lobe: Lobe, f_order: int, p_order: int, edges: tuple[float, 
         return _spectra[key]
     spec = view_spectrum(lobe, f_order, p_order, edges=edges)
     if key is not None:
-        remember(_spectra, key, spec)
+        _spectra[key] = spec
     return spec
 
 
@@ -258,11 +259,5 @@ def cached_search(lobe: Lobe, epsilon: float, **kw: Any) -> tuple[BandSearch, bo
         return _searches[key], True
     res = search_orders(lobe, epsilon, **kw)
     if key is not None:
-        remember(_searches, key, res)
+        _searches[key] = res
     return res, False
-
-
-def clear_cache() -> None:
-    """Forget every cached spectrum and search (timings that must include the tabulation)."""
-    _spectra.clear()
-    _searches.clear()

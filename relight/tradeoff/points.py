@@ -125,12 +125,12 @@ def frequency_radial_point(
 def frequency_shrm_point(
     px: FloatArray, brdf: Any, eps: float, size: int, view: FloatArray, ref: FloatArray, cal: costmodel.Calibration
 ) -> tuple[TradeoffPoint, FloatArray]:
-    from relight.brdf import lpq
+    from relight.brdf import lobe_cache
     from relight.shrm import create_shrm, reflect
 
     h, w = px.shape[:2]
     def create() -> Any:
-        lpq.clear_cache()  # every point pays for its own order search (App. C step 1)
+        lobe_cache.clear()  # every point pays for its own order search (App. C step 1)
         t0 = time.perf_counter()
         out = create_shrm(px, brdf, epsilon=eps, size=size)
         t1 = time.perf_counter()
@@ -214,11 +214,11 @@ def warm_up(brdf: Any, view: FloatArray | None) -> None:
         prefilter_radial(tiny, brdf, order=4, size=4)
         reference_radial(tiny, brdf, 2, epsilon=0.1)
     else:
-        from relight.brdf import lpq
+        from relight.brdf import lobe_cache
         from relight.reference_view import reference_view
         from relight.shrm import create_shrm, reflect
 
         reflect(create_shrm(tiny, brdf, order=4, p_order=2, size=4), view)
         reference_view(tiny, brdf, view, 2, truncation=0.1)
-        lpq.clear_cache()
+        lobe_cache.clear()
 

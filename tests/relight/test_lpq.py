@@ -1,11 +1,11 @@
-"""BRDF coefficients rho_hat_lpq (seed 000 eq. 13, App. C step 1) and order selection (App. C)."""
+"""BRDF coefficients rho_hat_lpq (seed 000 eq. 13, App. C step 1) and the lobe caches."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from relight.brdf import lpq
+from relight.brdf import lobe_cache, lpq
 from relight.brdf.coefficients import lambda_l, phong_transfer, radial_transfer
 from relight.brdf.spec import parse_brdf
 
@@ -63,30 +63,6 @@ def test_grid_convergence_and_parseval() -> None:
     assert np.all(np.diff(smooth.epsilon_table(), axis=1) <= 1e-15)
 
 
-@pytest.mark.parametrize(("sigma", "paper"), [(0.1, (24, 3)), (0.2, (12, 2)), (0.3, (7, 2)), (0.5, (5, 2))])
-def test_order_selection_reproduces_table5(sigma: float, paper: tuple[int, int]) -> None:
-    sel = lpq.select_orders(parse_brdf(f"microfacet:sigma={sigma}"), 0.03)
-    assert sel.met
-    table = sel.coefficients.epsilon_table()
-    f0 = sel.coefficients.F
-    # App. C: P is the smallest order meeting the tolerance at the probe F, then F the smallest at that P
-    assert table[sel.F, sel.P] <= 0.03
-    assert sel.P == 0 or table[f0, sel.P - 1] > 0.03
-    assert sel.F == 0 or table[sel.F - 1, sel.P] > 0.03
-    # seed 000 Table 5 (F_B, P_B) for epsilon < 0.03, within the spread of a different tabulation
-    assert abs(sel.F - paper[0]) <= 2 and paper[1] - 1 <= sel.P <= paper[1]
-
-
-def test_order_selection_grows_from_a_small_start() -> None:
-    lobe = parse_brdf("microfacet:sigma=0.2")
-    small = lpq.select_orders(lobe, 0.03, start=(4, 1))
-    default = lpq.select_orders(lobe, 0.03)
-    assert len(small.history) > 1 and small.met
-    assert abs(small.F - default.F) <= 1 and small.P == default.P
-    capped = lpq.select_orders(lobe, 1e-9, start=(4, 1), f_cap=8, p_cap=2)
-    assert not capped.met and (capped.F, capped.P) == (8, 2)
-
-
 def test_kajiya_kay_has_only_q0_terms() -> None:
     lobe = parse_brdf("kajiya-kay:s=32")
     assert lobe.azimuthally_symmetric and lobe.center == "T"
@@ -98,18 +74,13 @@ def test_kajiya_kay_has_only_q0_terms() -> None:
 
 
 def test_cache_and_errors() -> None:
-    lpq.clear_cache()
+    lobe_cache.clear()
     lobe = parse_brdf("microfacet:sigma=0.4")
     a, hit_a = lpq.cached_coefficients(lobe, 6, 2)
     b, hit_b = lpq.cached_coefficients(parse_brdf("microfacet:sigma=0.4"), 6, 2)
     assert (hit_a, hit_b) == (False, True) and a is b
-    s1, h1 = lpq.cached_select_orders(lobe, 0.05)
-    s2, h2 = lpq.cached_select_orders(lobe, 0.05)
-    assert (h1, h2) == (False, True) and s1 is s2
     with pytest.raises(ValueError, match="orders"):
         lpq.brdf_coefficients(lobe, -1, 2)
-    with pytest.raises(ValueError, match="epsilon"):
-        lpq.select_orders(lobe, 1.5)
     with pytest.raises(ValueError, match="outside"):
         a.epsilon(7, 0)
     with pytest.raises(ValueError, match="q <= min"):

@@ -19,7 +19,7 @@ from shrm_refs import (
 )
 
 from relight import shrm
-from relight.brdf import lpq
+from relight.brdf import lobe_cache
 from relight.brdf.spec import parse_brdf
 from relight.errors import InputError
 from relight.prefilter import prefilter_radial
@@ -111,7 +111,7 @@ def test_report_and_errors() -> None:
         shrm.reflect(sm, [0, 1])
     with pytest.raises(ValueError, match="backend"):
         shrm.synthesize_local(np.zeros((1, 1), complex), 0, np.zeros((1, 1, 1, 1)), [(0, 0)], 4, backend="x")  # type: ignore[arg-type]
-    lpq.clear_cache()
+    lobe_cache.clear()
 
 
 def test_oversized_plans_are_refused_before_allocating() -> None:

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from relight.brdf import lpq
+from relight.brdf import lpq_search
 from relight.brdf.coefficients import phong_transfer, radial_transfer, spectrum_for_tolerance
 from relight.brdf.models import GGX, Microfacet, TorranceSparrow
 from relight.brdf.radial import Phong
@@ -91,7 +91,7 @@ def test_sharp_phong_on_a_coarse_map_is_finite_and_bounded_below(s: float) -> No
 def test_microfacet_order_scales_as_one_over_sigma(sigma: float) -> None:
     """§7.1: F ~ 1/sigma. At epsilon = 0.1 App. C's search gives F sigma = 1.5 over the range (1 to 2.5 allowed, the
     search's doubling granularity); the coefficients are finite and epsilon(F, P) never grows with F or P."""
-    sel = lpq.select_orders(Microfacet(sigma), 0.1)
+    sel = lpq_search.select_orders(Microfacet(sigma), 0.1)
     assert sel.met and 1.0 <= sel.F * sigma <= 2.5, (sigma, sel.F)
     table = sel.coefficients.epsilon_table()
     assert np.all(np.isfinite(sel.coefficients.rho)) and np.all(np.isfinite(table))
@@ -103,7 +103,7 @@ def test_microfacet_sigma_002_needs_hundreds_of_orders() -> None:
     """sigma = 0.02 at epsilon = 0.01: F in the hundreds (198 here; §7.1's F ~ 1/sigma scaled by the tolerance), a
     small P, finite coefficients; an SHRM at a capped order on a small map stays finite too."""
     lobe = Microfacet(0.02)
-    sel = lpq.select_orders(lobe, 0.01)
+    sel = lpq_search.select_orders(lobe, 0.01)
     assert sel.met and 150 <= sel.F <= 260 and sel.P <= 6
     assert np.all(np.isfinite(sel.coefficients.rho))
     from relight.shrm import create_shrm, reflect

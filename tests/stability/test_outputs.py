@@ -129,7 +129,7 @@ def test_orders_beyond_the_map_do_not_cost_beyond_it(monkeypatch: pytest.MonkeyP
     computed to the requested order (order = 2000 on an 8-row map took 6.5 s in radial_transfer, 10^6 exhausts
     memory). Checked by recording the orders the coefficient routines are asked for. (An SHRM's view spectrum,
     relight.shrm.view_spectrum, reaches a bounded spectrum_order(H - 1) beyond it for the prediction.)"""
-    from relight.brdf import coefficients, lpq
+    from relight.brdf import coefficients, lobe_cache, lpq
     from relight.shrm import order_search, view_spectrum
     from relight.shrm.creation import spectrum_order
 
@@ -154,8 +154,7 @@ def test_orders_beyond_the_map_do_not_cost_beyond_it(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr("relight.prefilter.radial_transfer", radial)
     monkeypatch.setattr(lpq, "brdf_coefficients", general)
     monkeypatch.setattr(order_search, "view_spectrum", per_view)
-    lpq.clear_cache()
-    order_search.clear_cache()
+    lobe_cache.clear()
     px = np.ones((8, 16, 3))
     too_far = {}
     for name, call in (("prefilter_radial", lambda: prefilter_radial(px, Phong(8.0), order=2000, size=8)),
@@ -167,6 +166,5 @@ def test_orders_beyond_the_map_do_not_cost_beyond_it(monkeypatch: pytest.MonkeyP
             continue  # rejecting the order is fine too
         if max(asked) > spectrum_order(7, 7):
             too_far[name] = max(asked)
-    lpq.clear_cache()
-    order_search.clear_cache()
+    lobe_cache.clear()
     assert not too_far, f"coefficients computed to these orders for an 8-row map: {too_far}"
