@@ -24,6 +24,11 @@ MIN_ROUGHNESS = 0.005
 MAX_SUM_LOBES = 8
 #: Service limit on a conductor's complex index of refraction (eta, k).
 MAX_IOR = 100.0
+#: ``relight.brdf.splitsum.MIN_ROUGHNESS`` (the contract imports nothing of the core; tests/service/test_brdfs.py
+#: checks they agree): the sharpest split-sum lobe.
+SPLITSUM_MIN_ROUGHNESS = 1.0e-3
+#: gltf-pbr's GGX has alpha = roughness^2, which must meet MIN_ROUGHNESS: roughness >= sqrt(0.005) = 0.0707.
+GLTF_MIN_ROUGHNESS = 0.0708
 
 
 def _grey_or_rgb(v: list[float]) -> list[float]:
@@ -142,9 +147,28 @@ class KajiyaKaySpec(_Spec):
     s: float = Field(ge=0.0, le=MAX_EXPONENT)
 
 
+class GGXSplitSumSpec(_Spec):
+    """The engines' split-sum prefilter lobe about N (view = normal), ``relight.brdf.splitsum``: perceptual
+    roughness r, alpha = r^2."""
+
+    kind: Literal["ggx-ld"]
+    roughness: float = Field(ge=SPLITSUM_MIN_ROUGHNESS, le=1.0)
+
+
+class GltfPbrSpec(_Spec):
+    """glTF 2.0's metallic-roughness material (``relight.brdf.gltf_pbr``): a preset stored as its canonical sum,
+    Lambert (c_diff = base (1 - metallic)) + GGX (alpha = roughness^2, Schlick, F0 = lerp(0.04, base, metallic))."""
+
+    kind: Literal["gltf-pbr"]
+    base: Color01 = 1.0
+    metallic: Unit = 1.0
+    roughness: float = Field(1.0, ge=GLTF_MIN_ROUGHNESS, le=1.0,
+                             description="perceptual roughness; alpha = roughness^2 must meet MIN_ROUGHNESS")
+
+
 LobeSpec = Annotated[
     PhongSpec | LambertSpec | Lobe1DSpec | MicrofacetSpec | TorranceSparrowSpec | GGXSpec | BlinnPhongSpec
-    | LafortuneSpec | WardSpec | OrenNayarSpec | KajiyaKaySpec,
+    | LafortuneSpec | WardSpec | OrenNayarSpec | KajiyaKaySpec | GGXSplitSumSpec,
     Field(discriminator="kind"),
 ]
 
@@ -158,10 +182,12 @@ class SumSpec(_Spec):
 
 BrdfSpec = Annotated[
     PhongSpec | LambertSpec | Lobe1DSpec | MicrofacetSpec | TorranceSparrowSpec | GGXSpec | BlinnPhongSpec
-    | LafortuneSpec | WardSpec | OrenNayarSpec | KajiyaKaySpec | SumSpec,
+    | LafortuneSpec | WardSpec | OrenNayarSpec | KajiyaKaySpec | GGXSplitSumSpec | GltfPbrSpec | SumSpec,
     Field(discriminator="kind"),
 ]
 
 #: Every ``kind`` the union accepts (kept equal to the core's models by tests/service/test_brdfs.py).
 KINDS = ("phong", "lambert", "lobe1d", "microfacet", "torrance-sparrow", "ggx", "blinn-phong", "lafortune", "ward",
-         "oren-nayar", "kajiya-kay", "sum")
+         "oren-nayar", "kajiya-kay", "ggx-ld", "gltf-pbr", "sum")
+#: Kinds that are presets (the core expands them into a sum; the stored canonical spec is that sum).
+PRESETS = ("gltf-pbr",)

@@ -67,6 +67,8 @@ EXAMPLES: list[dict[str, Any]] = [
     {"kind": "ward", "rho_d": 0.3, "rho_s": 0.1, "alpha": 0.15},
     {"kind": "oren-nayar", "sigma": 0.4, "albedo": 0.7},
     {"kind": "kajiya-kay", "s": 20},
+    {"kind": "ggx-ld", "roughness": 0.3},
+    {"kind": "gltf-pbr", "base": [0.9, 0.6, 0.2], "metallic": 0.5, "roughness": 0.4},
     {"kind": "sum", "lobes": [{"kind": "lambert", "albedo": 0.5}, {"kind": "phong", "s": 64}]},
 ]
 
@@ -77,10 +79,17 @@ def test_union_covers_every_core_model() -> None:
     from relight.brdf import models
     from relight.contract.brdfs import KINDS
 
+    from relight.brdf import splitsum
+    from relight.brdf.spec import VALID_KINDS
+    from relight.contract.brdfs import PRESETS, SPLITSUM_MIN_ROUGHNESS
+
     home = {models.__name__, "relight.brdf.radial", "relight.brdf.microfacet"}  # re-exported by models
     classes = [cls for _, cls in inspect.getmembers(models, inspect.isclass) if cls.__module__ in home]
     core = {str(getattr(cls, "kind", "")) for cls in classes} - {""}
-    assert core == set(KINDS), f"service union {sorted(KINDS)} vs core models {sorted(core)}"
+    core |= {splitsum.GGXSplitSum.kind}  # the engines' split-sum lobe (issue 17)
+    assert set(PRESETS) <= set(VALID_KINDS)  # presets are core spec kinds that expand into a sum
+    assert core | set(PRESETS) == set(KINDS), f"service union {sorted(KINDS)} vs core models {sorted(core)}"
+    assert SPLITSUM_MIN_ROUGHNESS == splitsum.MIN_ROUGHNESS
     assert {e["kind"] for e in EXAMPLES} == set(KINDS)
 
 
@@ -89,8 +98,24 @@ def test_every_model_registers(http: httpx.Client, spec: dict[str, Any]) -> None
     r = http.post("/brdfs", json=spec)
     assert r.status_code in (200, 201), r.text
     body = r.json()
-    assert body["kind"] == spec["kind"]
+    assert body["kind"] == ("sum" if spec["kind"] == "gltf-pbr" else spec["kind"])  # a preset is stored as its sum
     assert http.get(f"/brdfs/{body['id']}").json()["id"] == body["id"]
+
+
+def test_gltf_pbr_preset_is_its_sum(http: httpx.Client) -> None:
+    """The preset is stored as the sum it expands to (glTF 2.0 App. B: c_diff = base (1 - m), F0 = 0.04 (1 - m) +
+    base m, alpha = r^2; worked by hand for base 0.5, m = 0.5, r = 0.4), which the union also takes as a sum."""
+    preset = http.post("/brdfs", json={"kind": "gltf-pbr", "base": 0.5, "metallic": 0.5, "roughness": 0.4}).json()
+    string = http.post("/brdfs", json={"kind": "sum", "lobes": [{"kind": "lambert", "albedo": 0.25},
+                                                                {"kind": "ggx", "alpha": 0.16, "fresnel": "schlick",
+                                                                 "f0": 0.27}]})
+    assert string.status_code in (200, 201), string.text
+    assert preset["spec"]["lobes"][1]["alpha"] == pytest.approx(0.16)
+    assert preset["spec"]["lobes"][1]["f0"] == pytest.approx(0.27)
+    assert preset["spec"]["lobes"][0]["albedo"] == pytest.approx(0.25)
+    # a roughness whose alpha = r^2 is below the service's MIN_ROUGHNESS is named
+    body = assert_problem(http.post("/brdfs", json={"kind": "gltf-pbr", "roughness": 0.05}), 422)
+    assert "roughness" in body["detail"], body
 
 
 @pytest.mark.parametrize("spec", ["merl:/etc/hosts", "lobe1d:/tmp/lobe.json", "/etc/relight/spec.json",
