@@ -51,6 +51,40 @@ class Call(Generic[T]):
     kwargs: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class IblAnswer:
+    """One answer of ``GET /envmaps/{id}/ibl``: the file (200) or, while it is computed, the job (202)."""
+
+    job_id: str
+    data: bytes | None
+    job: JobPublic | None = None
+
+
+def ibl_answer(r: httpx.Response) -> IblAnswer:
+    if r.status_code == 202:
+        job = JobPublic.model_validate_json(r.content)
+        return IblAnswer(job.id, None, job)
+    return IblAnswer(r.headers["X-Relight-Job"], r.content)
+
+
+@dataclass(frozen=True)
+class IblExport:
+    """An engine export from the service: ``data`` (the KTX2 chain or the SH JSON, byte-identical to ``relight
+    export``'s), ``manifest`` (``relight export``'s sidecar) and the job that computed it."""
+
+    data: bytes
+    manifest: dict[str, Any]
+    job_id: str
+
+
+def ibl_params(target: str, format: str, size: int, levels: int | None, epsilon: float,
+               sun: str) -> dict[str, Any]:
+    params: dict[str, Any] = {"target": target, "format": format, "size": size, "epsilon": epsilon, "sun": sun}
+    if levels is not None:
+        params["levels"] = levels
+    return params
+
+
 def job_body(envmap: str, brdf: Spec, epsilon: float | None, order: int | None, p_order: int | None,
               size: int | None) -> dict[str, Any]:
     ref: Any = brdf.model_dump(mode="json", exclude_none=True) if isinstance(brdf, BaseModel) else brdf
@@ -138,6 +172,10 @@ class Calls:
     @staticmethod
     def cancel_job(job_id: str) -> Call[JobPublic]:
         return Call("DELETE", f"/jobs/{job_id}", model_parser(JobPublic))
+
+    @staticmethod
+    def ibl(envmap_id: str, params: dict[str, Any]) -> Call[IblAnswer]:
+        return Call("GET", f"/envmaps/{envmap_id}/ibl", ibl_answer, {"params": params})
 
     @staticmethod
     def get_shrm(shrm_id: str) -> Call[ShrmManifest]:

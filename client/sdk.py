@@ -21,12 +21,14 @@ from relight.client.calls import (
     DEFAULT_URL,
     Call,
     Calls,
+    IblExport,
     Source,
     Spec,
     T,
     check_analysis,
     check_final,
     headers_for,
+    ibl_params,
     job_body,
     scene_body,
     tradeoff_body,
@@ -177,6 +179,18 @@ class RelightClient:
             if deadline is not None and time.monotonic() > deadline:
                 raise TransportError(f"job {job_id} still {job.state} after {timeout} s")
             time.sleep(poll_interval)
+
+    def ibl(self, envmap: str, *, target: str = "three", format: str = "ktx2", size: int = 256,
+            levels: int | None = None, epsilon: float = 2.5e-5, sun: str = "keep",
+            timeout: float | None = None) -> IblExport:
+        """An engine export of an uploaded map (``GET /envmaps/{id}/ibl``, computed as a job and cached): waits for
+        the job, then returns the file and its manifest."""
+        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun))
+        answer = self._do(call)
+        while answer.data is None:
+            self.wait(answer.job_id, timeout=timeout)
+            answer = self._do(call)
+        return IblExport(answer.data, self.job_result(answer.job_id)["manifest"], answer.job_id)
 
     def get_shrm(self, shrm_id: str) -> ShrmManifest:
         return self._do(Calls.get_shrm(shrm_id))
@@ -342,6 +356,17 @@ class AsyncRelightClient:
             if deadline is not None and time.monotonic() > deadline:
                 raise TransportError(f"job {job_id} still {job.state} after {timeout} s")
             await anyio.sleep(poll_interval)
+
+    async def ibl(self, envmap: str, *, target: str = "three", format: str = "ktx2", size: int = 256,
+                  levels: int | None = None, epsilon: float = 2.5e-5, sun: str = "keep",
+                  timeout: float | None = None) -> IblExport:
+        """:meth:`RelightClient.ibl`."""
+        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun))
+        answer = await self._do(call)
+        while answer.data is None:
+            await self.wait(answer.job_id, timeout=timeout)
+            answer = await self._do(call)
+        return IblExport(answer.data, (await self.job_result(answer.job_id))["manifest"], answer.job_id)
 
     async def get_shrm(self, shrm_id: str) -> ShrmManifest:
         return await self._do(Calls.get_shrm(shrm_id))

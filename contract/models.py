@@ -7,6 +7,7 @@ routes), so ``from relight.contract.models import X`` names any model:
 - :mod:`relight.contract.jobs`: SHRM requests, ``POST /jobs``, jobs, manifests
 - :mod:`relight.contract.visibility`: mesh visibility
 - :mod:`relight.contract.gaussian`: seed 002's Gaussian kinds
+- :mod:`relight.contract.engine`: engine-ready exports (issue 17)
 - :mod:`relight.contract.tradeoffs`: accuracy–time sweeps
 - :mod:`relight.contract.scenes`: scenes for the planner
 """
@@ -25,6 +26,7 @@ from relight.contract.base import (
     Vector3,
     parse_view,
 )
+from relight.contract.engine import SUN_PATTERN, IblCreate
 from relight.contract.gaussian import (
     GaussianChainCreate,
     GaussianFitCreate,
@@ -88,6 +90,7 @@ __all__ = [
     "GaussianChainCreate",
     "GaussianFitCreate",
     "Health",
+    "IblCreate",
     "JobCreate",
     "JobKindList",
     "JobList",
@@ -115,6 +118,7 @@ __all__ = [
     "Shape",
     "ShrmCreate",
     "ShrmManifest",
+    "SUN_PATTERN",
     "Strict",
     "TradeoffCreate",
     "TradeoffPublic",

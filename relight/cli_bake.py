@@ -1,7 +1,7 @@
-"""``relight bake``: engine outputs for a whole set of maps in one command (issue 17, item 7), locally.
+"""``relight bake``: engine outputs for a whole set of maps in one command (issue 17, item 7).
 
     relight bake MAPS... --target three|filament|gltf|babylon [--format ktx2,sh] [--size 256] [--levels L]
-                 [--epsilon E] [--sun extract|clamp=V|keep] --out DIR [--json]
+                 [--epsilon E] [--sun extract|clamp=V|keep] --out DIR [-j N] [--server URL] [--json]
 
 Items: per map, ``ktx2`` writes ``DIR/<stem>.<target>.ktx2`` (+ ``.json``, ``relight export``'s files) and ``sh``
 writes ``DIR/<stem>.sh.json`` (every convention of ``relight.sh9``). One progress row per item (``done``,
@@ -15,8 +15,12 @@ writes ``DIR/<stem>.sh.json`` (every convention of ``relight.sh9``). One progres
   partial file, and a rerun completes only what is missing.
 * **One failure fails alone.** An item that raises records its one-line error and the bake goes on; the exit
   status is 1 if any item failed (2 for bad arguments, as every command).
-
-``--server`` (the same bake through the API) is not implemented; items run one at a time.
+* **Local or served.** ``--server URL`` (``--local``, the default, computes here) uploads each map and reads its
+  export from the service's ``GET /envmaps/{id}/ibl`` (the client's ``relight.remote`` entry point): the KTX2 and
+  SH files are byte-identical to a local bake's, and so are the sidecars apart from their ``seconds``. Every
+  item's ``source`` is the map's file name, SHA-256 and size, whichever computed it; JSON keys are sorted.
+* **Parallel.** ``-j N`` runs N items at a time: worker processes locally (each item is CPU work), threads with
+  ``--server`` (each item waits on the service). Rows are printed as items finish.
 """
 
 from __future__ import annotations
@@ -25,11 +29,14 @@ import argparse
 import hashlib
 import json
 import time
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-#: Output formats an item can have.
+#: Output formats an item can have (``relight.engine_export.FORMATS``).
 FORMATS = ("ktx2", "sh")
+#: Largest -j.
+MAX_JOBS = 64
 
 
 def _file_digest(path: Path) -> str:
@@ -56,21 +63,77 @@ def _done(manifest: Path, key: str, files: list[Path]) -> bool:
         return False
 
 
-def _bake_item(path: Path, fmt: str, out: Path, args: argparse.Namespace, key: str) -> None:
-    from relight.cli_export import _write_atomic, export_chain
+def remote_exporter() -> Any:
+    """The client's ``remote_export`` (entry point group ``relight.remote``, name ``export``)."""
+    from importlib.metadata import entry_points
+
+    from relight.errors import InputError
+
+    found = list(entry_points(group="relight.remote", name="export"))
+    if not found:
+        raise InputError("--server needs the relight client (entry point relight.remote:export) installed")
+    return found[0].load()
+
+
+def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict[str, Any]]:
+    """(file bytes, manifest) of one export, computed here or by ``opts["server"]`` (module docstring)."""
+    if opts.get("server"):
+        return remote_exporter()(opts["server"], path, fmt=fmt, target=opts["target"], size=opts["size"],  # type: ignore[no-any-return]
+                                 levels=opts["levels"], epsilon=opts["epsilon"], sun=opts["sun"],
+                                 api_key=opts.get("api_key"))
+    from relight.engine_export import chain_export, sh_export
     from relight.envmap import read_envmap
-    from relight.sh9 import all_conventions
-    from relight.sun import apply_sun
 
     env = read_envmap(path)
     source = {"path": str(path), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
     if fmt == "ktx2":
-        export_chain(env.pixels, source, out, target=args.target, size=args.size, levels=args.levels,
-                     epsilon=args.epsilon, sun_spec=args.sun, extra={"bake_key": key})
+        files = chain_export(env.pixels, source, target=opts["target"], size=opts["size"], levels=opts["levels"],
+                             epsilon=opts["epsilon"], sun_spec=opts["sun"])
     else:
-        sun = apply_sun(env.pixels, args.sun)
-        doc = {"source": source, "sun": sun.report, "sh9": all_conventions(sun.pixels), "bake_key": key}
-        _write_atomic(out, json.dumps(doc, indent=2).encode("utf-8"))
+        files = sh_export(env.pixels, source, sun_spec=opts["sun"])
+    return files.data, files.manifest
+
+
+def _bake_item(path: Path, fmt: str, out: Path, opts: dict[str, Any], digest: str, key: str) -> None:
+    from relight.cli_export import _write_atomic
+
+    data, manifest = export_item(path, fmt, opts)
+    src = manifest.get("source") or {}
+    manifest = {**manifest, "source": {"name": path.name, "sha256": digest, "height": src.get("height"),
+                                       "width": src.get("width")}, "bake_key": key}
+    text = json.dumps(manifest, indent=2, sort_keys=True).encode("utf-8")
+    if fmt == "ktx2":
+        _write_atomic(out, data)
+        _write_atomic(out.with_name(out.name + ".json"), text)
+    else:
+        _write_atomic(out, text)
+
+
+def run_item(i: int, path_text: str, fmt: str, out_dir: str, opts: dict[str, Any]) -> dict[str, Any]:
+    """One item: skipped, done or failed (its one-line error); a top-level function so a process pool runs it."""
+    path = Path(path_text)
+    stem = path.name.split(".")[0]
+    out = Path(out_dir) / (f"{stem}.{opts['target']}.ktx2" if fmt == "ktx2" else f"{stem}.sh.json")
+    manifest = out.with_name(out.name + ".json") if fmt == "ktx2" else out
+    row: dict[str, Any] = {"item": i, "map": path_text, "format": fmt, "out": str(out)}
+    t0 = time.perf_counter()
+    try:
+        params = ({k: opts[k] for k in ("target", "size", "levels", "epsilon", "sun")} if fmt == "ktx2"
+                  else {"sun": opts["sun"]})
+        digest = _file_digest(path)
+        key = _key(digest, fmt, params)
+        if _done(manifest, key, [out, manifest]):
+            row["status"] = "skipped"
+        else:
+            _bake_item(path, fmt, out, opts, digest, key)
+            row["status"] = "done"
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # one item fails alone, with its one-line error
+        row["status"] = "failed"
+        row["error"] = " ".join(str(exc).split()) or type(exc).__name__
+    row["seconds"] = time.perf_counter() - t0
+    return row
 
 
 def cmd_bake(args: argparse.Namespace) -> int:
@@ -81,37 +144,40 @@ def cmd_bake(args: argparse.Namespace) -> int:
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
         raise InputError(f"--format takes a comma list of {', '.join(FORMATS)}, got {args.format!r}")
+    if not 1 <= args.jobs <= MAX_JOBS:
+        raise InputError(f"-j must lie in [1, {MAX_JOBS}], got {args.jobs}")
     parse_sun(args.sun)
+    if args.server:
+        remote_exporter()  # a missing client is an argument error, before any item runs
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
-    params = {"target": args.target, "size": args.size, "levels": args.levels, "epsilon": args.epsilon,
-              "sun": args.sun}
+    opts = {"target": args.target, "size": args.size, "levels": args.levels, "epsilon": args.epsilon,
+            "sun": args.sun, "server": args.server, "api_key": args.api_key}
+    items = [(m, fmt) for m in args.maps for fmt in formats]
     rows: list[dict[str, Any]] = []
-    items = [(Path(m), fmt) for m in args.maps for fmt in formats]
-    for i, (path, fmt) in enumerate(items, 1):
-        stem = path.name.split(".")[0]
-        out = out_dir / (f"{stem}.{args.target}.ktx2" if fmt == "ktx2" else f"{stem}.sh.json")
-        manifest = out.with_name(out.name + ".json") if fmt == "ktx2" else out
-        row: dict[str, Any] = {"item": i, "map": str(path), "format": fmt, "out": str(out)}
-        t0 = time.perf_counter()
-        try:
-            item_params = params if fmt == "ktx2" else {"sun": args.sun}
-            key = _key(_file_digest(path), fmt, item_params)
-            if _done(manifest, key, [out, manifest]):
-                row["status"] = "skipped"
-            else:
-                _bake_item(path, fmt, out, args, key)
-                row["status"] = "done"
-        except KeyboardInterrupt:
-            raise
-        except Exception as exc:  # one item fails alone, with its one-line error
-            row["status"] = "failed"
-            row["error"] = " ".join(str(exc).split()) or type(exc).__name__
-        row["seconds"] = time.perf_counter() - t0
+
+    def report(row: dict[str, Any]) -> None:
         rows.append(row)
         if not args.json:
             status = row["status"] if row["status"] != "failed" else f"FAILED: {row['error']}"
-            print(f"[{i}/{len(items)}] {path.name} {fmt}: {status} ({row['seconds']:.2f} s)", flush=True)
+            print(f"[{row['item']}/{len(items)}] {Path(row['map']).name} {row['format']}: {status} "
+                  f"({row['seconds']:.2f} s)", flush=True)
+
+    if args.jobs == 1:
+        for i, (m, fmt) in enumerate(items, 1):
+            report(run_item(i, m, fmt, str(out_dir), opts))
+    else:
+        pool: Executor = ThreadPoolExecutor(args.jobs) if args.server else ProcessPoolExecutor(args.jobs)
+        try:
+            futures: list[Future[dict[str, Any]]] = [pool.submit(run_item, i, m, fmt, str(out_dir), opts)
+                                                     for i, (m, fmt) in enumerate(items, 1)]
+            for fut in as_completed(futures):
+                report(fut.result())
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)  # running items finish or clean up their own files
+            raise
+        pool.shutdown()
+    rows.sort(key=lambda r: int(r["item"]))
     failed = sum(r["status"] == "failed" for r in rows)
     if args.json:
         print(json.dumps({"items": rows, "failed": failed}, indent=2))
@@ -122,6 +188,8 @@ def cmd_bake(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> None:
+    import os
+
     bp = sub.add_parser("bake", help="engine outputs (KTX2 chains, SH9) for many maps, resumable")
     bp.add_argument("maps", nargs="+")
     bp.add_argument("--target", required=True, choices=["three", "filament", "gltf", "babylon"])
@@ -131,5 +199,12 @@ def register(sub: Any) -> None:
     bp.add_argument("--epsilon", type=float, default=2.5e-5)
     bp.add_argument("--sun", default="keep")
     bp.add_argument("--out", required=True, help="output folder (created)")
+    bp.add_argument("-j", "--jobs", type=int, default=1, help="items at a time (processes locally, threads with "
+                    "--server)")
+    where = bp.add_mutually_exclusive_group()
+    where.add_argument("--local", dest="server", action="store_const", const=None,
+                       help="compute here (the default)")
+    where.add_argument("--server", default=None, help="compute on the relight service at this URL")
+    bp.add_argument("--api-key", default=os.environ.get("RELIGHT_API_KEY"), help="default $RELIGHT_API_KEY")
     bp.add_argument("--json", action="store_true")
     bp.set_defaults(func=cmd_bake)

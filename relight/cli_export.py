@@ -1,7 +1,7 @@
 """Engine export commands of the ``relight`` CLI (engine-ready outputs issue, item 1).
 
     relight export ENVMAP --target three|filament|gltf|babylon --format ktx2 [--size 256] [--levels L]
-                   [--epsilon E] [--sun extract|clamp=V|keep] --out FILE.ktx2 [--json]
+                   [--epsilon E] [--sun extract|clamp=V|keep] --out FILE.ktx2 [--server URL] [--json]
         the target engine's prefiltered GGX cube chain (``relight.cube_chain``): one mip per roughness in the
         engine's own lod mapping, RGBA16F, OpenGL face order; FILE.ktx2 carries the per-level table under the
         ``relight.levels`` key and ``FILE.ktx2.json`` beside it holds the same table (roughness, method, orders,
@@ -10,6 +10,7 @@
         (``relight.sun``): ``extract`` prefilters the map without its sun and records the sun as a directional
         light (direction, RGB irradiance, illuminance, angular radius) under ``sun``; ``clamp=V`` limits every
         pixel's luminance to V and records the removed energy fraction; ``keep`` (default) does neither.
+        ``--server URL`` computes it on the service (``GET /envmaps/{id}/ibl``): the same KTX2 bytes.
 
     relight dfg [--size 128] [--multiscatter] --out FILE.exr|FILE.png
         the split-sum DFG table (``relight.dfg``; docs/conventions.md "DFG"): R, G = (A, B) or, multiscatter,
@@ -50,31 +51,15 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 def export_chain(pixels: Any, source: dict[str, Any], out: Path, *, target: str, size: int, levels: int | None,
                  epsilon: float, sun_spec: str, extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The chain, SH9 and sun step of one map written to ``out`` (+ ``out.json``) atomically; the manifest."""
-    import numpy as np
+    """The chain, SH9 and sun step of one map (``relight.engine_export.chain_export``) written to ``out``
+    (+ ``out.json``) atomically; the manifest."""
+    from relight.engine_export import chain_export
 
-    from relight import __version__
-    from relight.cube_chain import prefilter_chain
-    from relight.ktx2 import write_ktx2
-    from relight.sh9 import all_conventions
-    from relight.sun import apply_sun
-
-    sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
-    chain = prefilter_chain(sun.pixels, target=target, size=size, levels=levels, epsilon=epsilon)
-    table = chain.summary()
-    manifest: dict[str, Any] = {
-        "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
-        "lighting_order": chain.lighting_order, "face_order": ["+X", "-X", "+Y", "-Y", "+Z", "-Z"],
-        "source": source, "size": size, "levels": table, "seconds": chain.seconds, "relight_version": __version__,
-        "sh9": all_conventions(sun.pixels), "sun": sun.report, **(extra or {}),
-    }
-    data = write_ktx2([lv.faces for lv in chain.levels], {"levels": table, "target": chain.target,
-                                                          "roughness_mapping": chain.mapping,
-                                                          "sh9": manifest["sh9"], "sun": sun.report},
-                      writer=f"relight {__version__}")
-    _write_atomic(out, data)
-    _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
-    return manifest
+    files = chain_export(pixels, source, target=target, size=size, levels=levels, epsilon=epsilon,
+                         sun_spec=sun_spec, extra=extra)
+    _write_atomic(out, files.data)
+    _write_atomic(out.with_name(out.name + ".json"), json.dumps(files.manifest, indent=2).encode("utf-8"))
+    return files.manifest
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -88,10 +73,20 @@ def cmd_export(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise InputError(f"the folder of --out does not exist: {out.parent}")
     parse_sun(args.sun)
-    env = read_envmap(args.envmap)
-    source = {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
-    manifest = export_chain(env.pixels, source, out, target=args.target, size=args.size, levels=args.levels,
-                            epsilon=args.epsilon, sun_spec=args.sun)
+    if args.server:  # the same export from the service (relight.cli_bake.remote_exporter): identical bytes
+        from relight.cli_bake import remote_exporter
+
+        data, manifest = remote_exporter()(args.server, Path(args.envmap), fmt="ktx2", target=args.target,
+                                           size=args.size, levels=args.levels, epsilon=args.epsilon, sun=args.sun,
+                                           api_key=args.api_key)
+        _write_atomic(out, data)
+        _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
+    else:
+        env = read_envmap(args.envmap)
+        source = {"path": str(args.envmap), "height": int(env.pixels.shape[0]),
+                  "width": int(env.pixels.shape[1])}
+        manifest = export_chain(env.pixels, source, out, target=args.target, size=args.size, levels=args.levels,
+                                epsilon=args.epsilon, sun_spec=args.sun)
     table = manifest["levels"]
     if args.json:
         print(json.dumps(manifest, indent=2))
@@ -171,6 +166,9 @@ def register(sub: Any) -> None:
     ex.add_argument("--sun", default="keep", help="extract (a directional light + the residual), clamp=V (pixel "
                     "luminance <= V, removed energy recorded) or keep (default)")
     ex.add_argument("--out", required=True)
+    ex.add_argument("--server", default=None, help="compute on the relight service at this URL (GET "
+                    "/envmaps/{id}/ibl; the same bytes)")
+    ex.add_argument("--api-key", default=os.environ.get("RELIGHT_API_KEY"), help="default $RELIGHT_API_KEY")
     ex.add_argument("--json", action="store_true", help="print the manifest as JSON")
     ex.set_defaults(func=cmd_export)
 

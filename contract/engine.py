@@ -1,0 +1,35 @@
+"""Engine-ready exports (issue 17): the ``ibl`` job kind's request and the sun step's spelling."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from relight.contract.base import Digest, Strict
+
+#: ``--sun``: extract, keep, or clamp=V with V a positive number (``relight.sun.parse_sun`` is the authority).
+SUN_PATTERN = r"^(extract|keep|clamp=([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?)$"
+
+
+class IblCreate(Strict):
+    """An engine-ready export of an environment map (``relight export`` through the service, ``relight.engine_export``):
+    ``ktx2`` the target engine's prefiltered GGX cube chain, ``sh`` its SH9 in every engine convention."""
+
+    envmap: Digest
+    target: Literal["three", "filament", "gltf", "babylon"] = Field(
+        "three", description="engine whose roughness-to-mip mapping and split-sum lobe the chain follows")
+    format: Literal["ktx2", "sh"] = "ktx2"
+    size: int = Field(256, ge=1, le=1024, description="face size of level 0, a power of two (service limit 1024)")
+    levels: int | None = Field(None, ge=1, le=11, description="mip levels (default: down to 1 x 1)")
+    epsilon: float = Field(2.5e-5, ge=1e-8, lt=1.0, description="uncaptured lobe energy per level (seed 000 §5.1)")
+    sun: str = Field("keep", max_length=40, pattern=SUN_PATTERN,
+                     description="extract (directional light + residual), clamp=V or keep")
+
+    @model_validator(mode="after")
+    def _power_of_two(self) -> IblCreate:
+        if self.size & (self.size - 1):
+            raise ValueError(f"size must be a power of two, got {self.size}")
+        if self.levels is not None and self.levels > self.size.bit_length():
+            raise ValueError(f"levels ({self.levels}) must be at most {self.size.bit_length()} for size {self.size}")
+        return self

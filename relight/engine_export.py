@@ -1,0 +1,85 @@
+"""One engine export of one map as bytes (issue 17, items 1 and 2): what ``relight export``, ``relight bake`` and
+the service's ``ibl`` job kind (``GET /envmaps/{id}/ibl``) all write, so that the three give identical files.
+
+* :func:`chain_export` — the sun step (``relight.sun``), the target engine's prefiltered GGX cube chain
+  (``relight.cube_chain``) as a KTX2 file (``relight.ktx2``) and its manifest (the per-level table with each
+  level's App. B bound, the SH9 of the map after the sun step in every convention, the sun report, seconds).
+  The KTX2 carries the manifest's deterministic part only (the level table without seconds, target, mapping, SH9,
+  sun), so the same map and parameters give byte-identical files wherever they are computed.
+* :func:`sh_export` — the sun step and the SH9 in every engine convention (``relight.sh9``), no chain.
+
+:func:`without_seconds` drops the timing keys from a manifest: two manifests of the same export are equal after it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Export formats (``--format``; the service's ``format`` parameter).
+FORMATS = ("ktx2", "sh")
+#: Targets (``relight.cube_chain.TARGET_MAPPING``'s keys, repeated so that argument parsers import nothing numerical;
+#: tests/relight/test_engine_export.py checks they agree).
+TARGETS = ("three", "filament", "gltf", "babylon")
+#: Media type of KTX2 files (IANA registration, KTX 2.0 specification §A).
+KTX2_MEDIA_TYPE = "image/ktx2"
+
+
+@dataclass(frozen=True)
+class ExportFiles:
+    """``data``: the KTX2 file (chain) or the SH JSON document's UTF-8 bytes (sh); ``manifest``: the sidecar."""
+
+    data: bytes
+    manifest: dict[str, Any]
+
+
+def chain_export(pixels: NDArray[np.floating], source: dict[str, Any], *, target: str, size: int,
+                 levels: int | None, epsilon: float, sun_spec: str,
+                 extra: dict[str, Any] | None = None) -> ExportFiles:
+    """The KTX2 chain of a lat-long map (H, W, 3) and its manifest (module docstring)."""
+    from relight import __version__
+    from relight.cube_chain import prefilter_chain
+    from relight.ktx2 import write_ktx2
+    from relight.sh9 import all_conventions
+    from relight.sun import apply_sun
+
+    sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
+    chain = prefilter_chain(sun.pixels, target=target, size=size, levels=levels, epsilon=epsilon)
+    table = chain.summary()
+    manifest: dict[str, Any] = {
+        "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
+        "lighting_order": chain.lighting_order, "face_order": ["+X", "-X", "+Y", "-Y", "+Z", "-Z"],
+        "source": source, "size": size, "levels": table, "seconds": chain.seconds, "relight_version": __version__,
+        "sh9": all_conventions(sun.pixels), "sun": sun.report, **(extra or {}),
+    }
+    data = write_ktx2([lv.faces for lv in chain.levels],
+                      {"levels": [{k: v for k, v in row.items() if k != "seconds"} for row in table],
+                       "target": chain.target, "roughness_mapping": chain.mapping, "sh9": manifest["sh9"],
+                       "sun": sun.report},
+                      writer=f"relight {__version__}")
+    return ExportFiles(data, manifest)
+
+
+def sh_export(pixels: NDArray[np.floating], source: dict[str, Any], *, sun_spec: str,
+              extra: dict[str, Any] | None = None) -> ExportFiles:
+    """The map's SH9 after the sun step, in every convention, as a JSON document (also the manifest)."""
+    import json
+
+    from relight.sh9 import all_conventions
+    from relight.sun import apply_sun
+
+    sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
+    doc = {"source": source, "sun": sun.report, "sh9": all_conventions(sun.pixels), **(extra or {})}
+    return ExportFiles(json.dumps(doc, indent=2).encode("utf-8"), doc)
+
+
+def without_seconds(obj: Any) -> Any:
+    """``obj`` with every ``seconds`` key removed at every level (module docstring)."""
+    if isinstance(obj, dict):
+        return {k: without_seconds(v) for k, v in obj.items() if k != "seconds"}
+    if isinstance(obj, list):
+        return [without_seconds(v) for v in obj]
+    return obj

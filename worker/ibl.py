@@ -1,0 +1,41 @@
+"""The ``ibl`` job kind's task: an engine-ready export of an uploaded map (issue 17; ``relight.engine_export``).
+
+The request (``relight.contract.models.IblCreate``, canonicalised by ``relight.server.services.ibl``) names the map
+and the export; the result is the export's manifest (``relight export``'s sidecar: per-level roughness, method,
+orders, predicted error and App. B bound, seconds, SH9 in every convention, the sun report) and one or two files:
+``chain.ktx2`` (format ``ktx2``: the KTX2 cube chain, byte-identical to ``relight export``'s for the same map and
+parameters) or ``sh.json`` (format ``sh``: the SH9 document), plus ``manifest.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+from relight.worker.progress import JobContext
+
+JSON = "application/json"
+
+
+def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
+    from relight.engine_export import KTX2_MEDIA_TYPE, chain_export, sh_export
+    from relight.envmap import read_envmap
+
+    t0 = time.perf_counter()
+    ctx.report("loading", 0.05)
+    env = read_envmap(ctx.store.read(request["envmap"]), max_pixels=ctx.max_pixels)
+    source = {"envmap": request["envmap"], "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
+    ctx.report("prefiltering", 0.2)
+    if request["format"] == "ktx2":
+        files = chain_export(env.pixels, source, target=request["target"], size=int(request["size"]),
+                             levels=request.get("levels"), epsilon=float(request["epsilon"]), sun_spec=request["sun"])
+        name, media = "chain.ktx2", KTX2_MEDIA_TYPE
+    else:
+        files = sh_export(env.pixels, source, sun_spec=request["sun"])
+        name, media = "sh.json", JSON
+    ctx.report.check_cancelled()
+    manifest_bytes = json.dumps(files.manifest, indent=2).encode("utf-8")
+    return {"manifest": files.manifest, "file": name, "task_seconds": time.perf_counter() - t0,
+            "files": {name: {"sha256": ctx.store.put_bytes(files.data), "media_type": media},
+                      "manifest.json": {"sha256": ctx.store.put_bytes(manifest_bytes), "media_type": JSON}}}
