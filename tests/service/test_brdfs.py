@@ -76,12 +76,9 @@ EXAMPLES: list[dict[str, Any]] = [
 def test_union_covers_every_core_model() -> None:
     import inspect
 
-    from relight.brdf import models
-    from relight.contract.brdfs import KINDS
-
-    from relight.brdf import splitsum
+    from relight.brdf import models, splitsum
     from relight.brdf.spec import VALID_KINDS
-    from relight.contract.brdfs import PRESETS, SPLITSUM_MIN_ROUGHNESS
+    from relight.contract.brdfs import KINDS, PRESETS, SPLITSUM_MIN_ROUGHNESS
 
     home = {models.__name__, "relight.brdf.radial", "relight.brdf.microfacet"}  # re-exported by models
     classes = [cls for _, cls in inspect.getmembers(models, inspect.isclass) if cls.__module__ in home]
