@@ -67,6 +67,14 @@ def cmd_prefilter(args: argparse.Namespace) -> int:
 
     brdf = parse_brdf(args.brdf)
     env = _load_env(args.envmap)
+    if getattr(args, "sun", "keep") != "keep":  # relight.sun: prefilter the map without its sun (or clamped); the report says what went
+        import dataclasses
+
+        from relight.sun import apply_sun
+
+        sun = apply_sun(env.pixels, args.sun)
+        env = dataclasses.replace(env, pixels=sun.pixels)
+        args.sun_report = sun.report
     order = p_order = None
     if args.order is not None:
         order, p_order = _parse_order(args.order)
@@ -79,7 +87,8 @@ def cmd_prefilter(args: argparse.Namespace) -> int:
         return result
     res = prefilter_radial(env.pixels, brdf, epsilon=args.epsilon, order=order, size=args.size)
     res.report.input.update(
-        {"path": str(args.envmap), "negatives_clamped": env.negatives_clamped, "min_negative": env.min_negative}
+        {"path": str(args.envmap), "negatives_clamped": env.negatives_clamped, "min_negative": env.min_negative,
+         "sun": getattr(args, "sun_report", {"mode": "keep"})}
     )
     write_exr(args.out, res.map.astype(np.float32), attributes={"relight.report": json.dumps(res.report.to_json())})
     if args.report:
@@ -200,6 +209,9 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
                     help="SHRMs: epsilon holds for views with N.V at least this (default 0.1, RELIGHT_GRAZING_LIMIT)")
     pf.add_argument("--out", required=True)
     pf.add_argument("--report", help="write the JSON report here")
+    pf.add_argument("--sun", default="keep", help="extract (prefilter without the sun; the report's input.sun "
+                    "holds it as a directional light), clamp=V (pixel luminance <= V, removed energy recorded) or "
+                    "keep (default); relight.sun")
     pf.set_defaults(func=cmd_prefilter)
 
     rf = sub.add_parser("reference", help="angular-domain brute-force reference")

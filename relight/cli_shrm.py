@@ -62,6 +62,7 @@ def prefilter_shrm(
             "path": str(getattr(args, "envmap", "")),
             "negatives_clamped": getattr(env, "negatives_clamped", 0),
             "min_negative": getattr(env, "min_negative", 0.0),
+            "sun": getattr(args, "sun_report", {"mode": "keep"}),
         }
     )
     man = write_shrm(args.out, shrm)
