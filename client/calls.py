@@ -86,10 +86,10 @@ def ibl_params(target: str, format: str, size: int, levels: int | None, epsilon:
 
 
 def job_body(envmap: str, brdf: Spec, epsilon: float | None, order: int | None, p_order: int | None,
-              size: int | None) -> dict[str, Any]:
+              size: int | None, sun: str | None = None) -> dict[str, Any]:
     ref: Any = brdf.model_dump(mode="json", exclude_none=True) if isinstance(brdf, BaseModel) else brdf
     body: dict[str, Any] = {"envmap": envmap, "brdf": ref}
-    for k, v in (("epsilon", epsilon), ("order", order), ("p_order", p_order), ("size", size)):
+    for k, v in (("epsilon", epsilon), ("order", order), ("p_order", p_order), ("size", size), ("sun", sun)):
         if v is not None:
             body[k] = v
     return body

@@ -2,7 +2,8 @@
 ``relight serve`` and ``relight worker`` register from ``relight.server.cli`` and ``relight.worker.cli``).
 
     relight upload ENVMAP [--server URL]
-    relight submit ENVMAP --brdf SPEC [--epsilon E | --order F] [--size S] [--wait] [--out SHRM.exr]
+    relight submit ENVMAP --brdf SPEC [--epsilon E | --order F] [--size S] [--sun extract|clamp=V|keep] [--wait]
+                   [--out SHRM.exr]
     relight jobs [--state S]
 
 ``--server`` defaults to ``$RELIGHT_SERVER`` or http://127.0.0.1:8000; ``--api-key`` to ``$RELIGHT_API_KEY``.
@@ -63,7 +64,7 @@ def cmd_submit(args: argparse.Namespace) -> int:
         envmap = args.envmap if _DIGEST.match(args.envmap) and not Path(args.envmap).exists() else \
             c.upload_envmap(args.envmap).id
         job = c.submit(envmap, _brdf_arg(args.brdf), epsilon=args.epsilon, order=args.order, p_order=args.p_order,
-                       size=args.size)
+                       size=args.size, sun=None if args.sun == "keep" else args.sun)
         if not (args.wait or args.out):
             print(job.model_dump_json(indent=2) if args.json else f"{job.id}  {job.state}")
             return 0
@@ -144,6 +145,8 @@ def register(sub: Any) -> None:
     g.add_argument("--order", type=int)
     p.add_argument("--p-order", type=int, help="view order P for SHRMs (with --order)")
     p.add_argument("--size", type=int)
+    p.add_argument("--sun", default="keep", help="extract (prefilter without the sun; the result's input.sun holds "
+                   "it), clamp=V or keep (default)")
     p.add_argument("--wait", action="store_true", help="follow progress until the job ends")
     p.add_argument("--wait-timeout", type=float, default=None)
     p.add_argument("--out", help="download the result here (.exr: coefficients.exr, .bin: float16 texture)")

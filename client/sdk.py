@@ -110,9 +110,10 @@ class RelightClient:
         return self._do(Calls.plan(job_body(envmap, brdf, epsilon, order, p_order, size)))
 
     def submit(self, envmap: str, brdf: Spec, *, epsilon: float | None = None, order: int | None = None,
-               p_order: int | None = None, size: int | None = None) -> JobPublic:
-        """Start (or join) a job; ``job.cached`` is True when the result existed already."""
-        return self._do(Calls.submit(job_body(envmap, brdf, epsilon, order, p_order, size)))
+               p_order: int | None = None, size: int | None = None, sun: str | None = None) -> JobPublic:
+        """Start (or join) a job; ``job.cached`` is True when the result existed already. ``sun``: extract,
+        clamp=V or keep (``ShrmCreate.sun``)."""
+        return self._do(Calls.submit(job_body(envmap, brdf, epsilon, order, p_order, size, sun)))
 
     def submit_job(self, kind: str, request: dict[str, Any] | BaseModel) -> JobPublic:
         """Start (or join) a job of any kind (``POST /jobs``); ``request`` as the kind's own route takes it."""
@@ -297,8 +298,8 @@ class AsyncRelightClient:
         return await self._do(Calls.plan(job_body(envmap, brdf, epsilon, order, p_order, size)))
 
     async def submit(self, envmap: str, brdf: Spec, *, epsilon: float | None = None, order: int | None = None,
-                     p_order: int | None = None, size: int | None = None) -> JobPublic:
-        return await self._do(Calls.submit(job_body(envmap, brdf, epsilon, order, p_order, size)))
+                     p_order: int | None = None, size: int | None = None, sun: str | None = None) -> JobPublic:
+        return await self._do(Calls.submit(job_body(envmap, brdf, epsilon, order, p_order, size, sun)))
 
     async def submit_job(self, kind: str, request: dict[str, Any] | BaseModel) -> JobPublic:
         return await self._do(Calls.submit_job(kind, request))

@@ -10,6 +10,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from relight.contract.base import Digest, JobState, Public, Strict
+from relight.contract.engine import SUN_PATTERN
 from relight.contract.reports import Orders, PredictedError, ViewBand
 from relight.contract.resources import BrdfRef
 
@@ -36,7 +37,10 @@ class PlanCreate(JobCreate):
 
 
 class ShrmCreate(JobCreate):
-    pass
+    sun: str = Field("keep", max_length=40, pattern=SUN_PATTERN,
+                     description="extract: prefilter the map without its sun (the result's input.sun holds it as a "
+                                 "directional light), clamp=V: pixel luminance <= V (removed energy recorded), keep; "
+                                 "relight.sun. The plan is of the map as uploaded")
 
 
 class OutputShape(Public):
@@ -77,6 +81,7 @@ class JobParams(Public):
     order: int | None = None
     p_order: int | None = None
     size: int | None = None
+    sun: str | None = Field(None, description="the sun step (ShrmCreate.sun) when not keep")
 
 
 class Prediction(Public):

@@ -67,7 +67,7 @@ def cmd_prefilter(args: argparse.Namespace) -> int:
 
     brdf = parse_brdf(args.brdf)
     env = _load_env(args.envmap)
-    if getattr(args, "sun", "keep") != "keep":  # relight.sun: prefilter the map without its sun (or clamped); the report says what went
+    if getattr(args, "sun", "keep") != "keep":  # relight.sun: the map without its sun (or clamped), reported
         import dataclasses
 
         from relight.sun import apply_sun

@@ -153,12 +153,19 @@ def compute_shrm(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
     env = read_envmap(store.read(request["envmap"]), max_pixels=ctx.max_pixels)
     lobe = parse_brdf(to_core(request["brdf_spec"], store))
     params: dict[str, Any] = request.get("params", {})
+    pixels: Any = env.pixels  # float32 as read, float64 after the sun step
+    sun_report = None
+    if params.get("sun"):  # relight.sun: the map without its sun (or clamped); the manifest's input.sun says what
+        from relight.sun import apply_sun
+
+        sun = apply_sun(env.pixels, params["sun"])
+        pixels, sun_report = sun.pixels, sun.report
     report("prefiltering", 0.55)
     t_compute = time.perf_counter()
     if uses_reflection_map(lobe, params):
-        layers, representation, core_report, attributes = _radial(env.pixels, lobe, params, report)
+        layers, representation, core_report, attributes = _radial(pixels, lobe, params, report)
     else:
-        layers, representation, core_report, attributes = _general(env.pixels, lobe, params, report)
+        layers, representation, core_report, attributes = _general(pixels, lobe, params, report)
     compute_seconds = time.perf_counter() - t_compute
     report.check_cancelled()
     check_finite(layers)
@@ -174,7 +181,7 @@ def compute_shrm(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
         "orders": core_report.get("orders"),
         "predicted": core_report.get("predicted"),
         "input": {"negatives_clamped": env.negatives_clamped, "min_negative": env.min_negative,
-                  "height": env.height, "width": env.width},
+                  "height": env.height, "width": env.width, **({"sun": sun_report} if sun_report else {})},
     }
     attributes = {k: json.dumps(from_core(json.loads(v), store), sort_keys=True) for k, v in attributes.items()}
     digest, manifest = write_result(store, job_id, layers, representation=representation,

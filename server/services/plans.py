@@ -66,7 +66,18 @@ class PlanService:
         epsilon = create.epsilon
         if epsilon is None and create.order is None:
             epsilon = DEFAULT_EPSILON
-        return {"epsilon": epsilon, "order": create.order, "p_order": create.p_order, "size": create.size}
+        params: dict[str, Any] = {"epsilon": epsilon, "order": create.order, "p_order": create.p_order,
+                                  "size": create.size}
+        sun = getattr(create, "sun", "keep")  # SHRM jobs only; absent when keep, so earlier job ids stay valid
+        if sun != "keep":
+            from relight.sun import parse_sun
+
+            try:
+                parse_sun(sun)
+            except InputError as exc:
+                raise Unprocessable(f"sun: {exc}") from None
+            params["sun"] = sun
+        return params
 
     async def prepare(self, create: JobCreate) -> Prepared:
         env = await self.envmaps.get(create.envmap)

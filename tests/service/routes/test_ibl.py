@@ -145,3 +145,31 @@ def test_bake_server_equals_local(served: dict[str, Any], tmp_path: Path) -> Non
     # the served bake's items are skipped by a local rerun (one key, whoever computed it)
     rerun = subprocess.run([*bake, "--out", str(tmp_path / "server")], capture_output=True, text=True, timeout=600)
     assert [r["status"] for r in json.loads(rerun.stdout)["items"]] == ["skipped"] * 4
+
+
+def test_submit_with_sun_prefilters_the_clamped_map(served: dict[str, Any]) -> None:
+    """``relight submit --sun`` / ``ShrmCreate.sun``: the job prefilters the map after the sun step (the same floats
+    as the core on ``relight.sun.clamp_map`` of the map), records it in the manifest's input, and is a different
+    job from the same request without it."""
+    import numpy as np
+
+    from relight.brdf.models import Phong
+    from relight.prefilter import prefilter_radial
+    from relight.sun import clamp_map
+
+    from ..support import read_exr
+
+    with RelightClient(served["url"]) as c:
+        job = c.submit(served["env"], "phong:s=16", epsilon=0.01, sun="clamp=2")
+        assert job.params is not None and job.params.sun == "clamp=2"
+        c.wait(job.id, timeout=300)
+        got = read_exr(c.download(job.id, "coefficients.exr"))[""]
+        manifest = c.get_shrm(job.id).model_dump()
+        plain = c.submit(served["env"], "phong:s=16", epsilon=0.01)
+    px = read_envmap(served["path"]).pixels
+    clamped = clamp_map(px, 2.0)
+    expected = prefilter_radial(clamped.pixels, Phong(16), epsilon=0.01).map.astype(np.float32)
+    np.testing.assert_array_equal(got, expected)
+    assert manifest["input"]["sun"] == json.loads(json.dumps(clamped.report))
+    assert clamped.report["removed_energy_fraction"] > 0.01  # the clamp changed the map: the test can fail
+    assert plain.id != job.id
