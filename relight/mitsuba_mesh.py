@@ -9,6 +9,10 @@ interpolated normals; the BSDF is ``diffuse`` with ``reflectance = albedo`` (``f
 
 ``path`` with ``max_depth = 2`` is direct light with exact self-shadowing (one bounce from the surface to the
 environment); ``max_depth = 2 + B`` adds B interreflection bounces.
+
+``env_rotation`` turns the environment about +Y the way the viewer and ``relight.gl.prt.rotate_lighting_y`` do (the
+map looked up at ``rotate_y(d, -angle)``): the emitter's ``to_world`` is Mitsuba's right-handed rotation by the
+same angle about +Y, applied to the un-rotated bitmap, so no texel is resampled.
 """
 
 from __future__ import annotations
@@ -63,9 +67,11 @@ class MeshRender:
 
 def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, view: NDArray[np.floating],
                         size: int, spp: int, albedo: float = 1.0, max_depth: int = 2, seed: int = 0,
-                        texels: int = 8, bsdf: dict[str, Any] | None = None) -> MeshRender:
+                        texels: int = 8, bsdf: dict[str, Any] | None = None,
+                        env_rotation: float = 0.0) -> MeshRender:
     """Render the (unit-ball) mesh under the lat-long map (negatives clamped) seen along V (module docstring);
-    ``bsdf`` (a ``relight.mitsuba_twin.twin`` dictionary) replaces the Lambertian of ``albedo``."""
+    ``bsdf`` (a ``relight.mitsuba_twin.twin`` dictionary) replaces the Lambertian of ``albedo``; ``env_rotation``
+    (radians about +Y) turns the environment."""
     mi = mitsuba_module()
     p = np.maximum(np.asarray(pixels, dtype=np.float64), 0.0)
     reason = check_bitmap_shape(p.shape)
@@ -90,7 +96,9 @@ def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, vie
                          "pixel_format": "rgb"},
                 "sampler": {"type": "independent", "sample_count": spp},
             },
-            "emitter": {"type": "envmap", "bitmap": mi.Bitmap(bitmap)},
+            "emitter": {"type": "envmap", "bitmap": mi.Bitmap(bitmap),
+                        "to_world": mi.ScalarTransform4f().rotate(axis=[0, 1, 0],
+                                                                  angle=float(np.degrees(env_rotation)))},
             "mesh": {"type": "obj", "filename": str(obj), "face_normals": False,
                      "bsdf": bsdf or {"type": "diffuse", "reflectance": {"type": "rgb", "value": [albedo] * 3}}},
         }

@@ -4,6 +4,8 @@ process, docs/facts.md).
 
 * :func:`reference_image` — the angular-domain brute force of the unit sphere for one distant view
   (``relight.gl.views.reference_sphere_image``, seed 000 eqs. 1-2).
+* :func:`mesh_reference` — Mitsuba's image of an uploaded mesh under an uploaded map
+  (``relight.gl.views.mesh_reference_image``).
 * :func:`envmap_texture` — the map as float16 RGB lat-long texels for the viewer's background
   (``relight.gl.views.envmap_texture``).
 """
@@ -25,6 +27,16 @@ def reference_image(store_root: str, envmap_digest: str, brdf_spec: Any, view: l
 
     path = str(BlobStore(store_root).path(envmap_digest))
     return reference_sphere_image(path, brdf_spec, view, size, env_rows=env_rows, max_pixels=max_pixels)
+
+
+def mesh_reference(store_root: str, envmap_digest: str, geometry_digest: str, vertices: int, faces: int,
+                   view: list[float], size: int, **kw: Any) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Mitsuba's (image, luminance variance) of the mesh whose verified ``geometry.bin`` is ``geometry_digest``."""
+    from relight.gl.views import mesh_reference_image
+
+    store = BlobStore(store_root)
+    geometry = store.verified_path(geometry_digest).read_bytes()
+    return mesh_reference_image(str(store.path(envmap_digest)), geometry, vertices, faces, view, size, **kw)
 
 
 def envmap_texture(store_root: str, envmap_digest: str, rows: int, *,

@@ -3,6 +3,9 @@
 * :func:`reference_sphere_image` — the angular-domain brute force (seed 000 eqs. 1-2,
   ``relight.reference_view.reference_sphere``) of the unit sphere for one distant view, with the camera of
   ``relight.shrm.render_sphere`` (and of the viewer's comparison panel and ``relight.gl.render``).
+* :func:`mesh_reference_image` — Mitsuba 3's path-traced image (``relight.mitsuba_mesh``: Lambertian, exact
+  self-shadowing, optional interreflections) of a mesh under a map, with the orthographic camera of
+  ``relight.mesh_render`` and of the viewer's fixed views (the mesh normalised into the unit ball).
 * :func:`envmap_texture` — an environment map as float16 RGB lat-long texels for the viewer's background.
 * :func:`encode_png` / :func:`encode_exr` — the display PNG (``relight.envmap.tonemap``) and the float EXR.
 
@@ -23,6 +26,10 @@ from relight.errors import InputError
 
 #: Largest reference image edge (the brute force costs O(size^2 x environment pixels in the lobe)).
 MAX_REFERENCE_SIZE = 256
+#: Largest Mitsuba sample budget of one mesh reference (size^2 x spp): 256^2 x 256, about 20 s on 2 cores.
+MAX_MESH_REFERENCE_SAMPLES = 256 * 256 * 256
+#: Path depths of the mesh reference: 2 = direct light with exact shadows, each step above adds one bounce.
+MESH_REFERENCE_DEPTHS = (2, 5)
 
 
 def _read_map(envmap_path: str, max_pixels: int | None, rows: int | None) -> NDArray[np.float32]:
@@ -59,6 +66,48 @@ def reference_sphere_image(
     px = _read_map(envmap_path, max_pixels, env_rows)
     brdf = parse_brdf(brdf_spec)
     return np.asarray(reference_sphere(px, brdf, np.asarray(view, dtype=np.float64), size), dtype=np.float32)
+
+
+def mesh_reference_image(
+    envmap_path: str,
+    geometry: bytes,
+    vertices: int,
+    faces: int,
+    view: list[float],
+    size: int,
+    *,
+    spp: int,
+    albedo: float,
+    max_depth: int = 2,
+    env_rotation: float = 0.0,
+    env_rows: int | None = None,
+    max_pixels: int | None = None,
+    seed: int = 0,
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Mitsuba's image (size, size, 3) of the mesh (``geometry.bin`` bytes, canonical order) lit by the map, and
+    the per-pixel Monte Carlo variance of its luminance (size, size).
+
+    The map is area-resampled to ``env_rows`` first (the viewer lights from the SH of its own float16 texture, so
+    the reference only needs the frequencies a comparison can resolve); ``env_rotation`` (radians about +Y) turns
+    it like the viewer's rotation slider. Deterministic for a given ``seed``.
+    """
+    from relight.mesh import geometry as geometry_mod
+    from relight.mitsuba_mesh import render_mesh_mitsuba
+
+    if not 1 <= size <= MAX_REFERENCE_SIZE:
+        raise InputError(f"reference size must be in 1..{MAX_REFERENCE_SIZE}, got {size}")
+    if spp < 1 or size * size * spp > MAX_MESH_REFERENCE_SAMPLES:
+        raise InputError(f"size^2 x spp must be in 1..{MAX_MESH_REFERENCE_SAMPLES}, got {size}^2 x {spp}")
+    lo, hi = MESH_REFERENCE_DEPTHS
+    if not lo <= max_depth <= hi:
+        raise InputError(f"max_depth must be in {lo}..{hi} (2 = direct light), got {max_depth}")
+    if not 0.0 <= albedo <= 1.0:
+        raise InputError(f"albedo must be in [0, 1], got {albedo}")
+    mesh = geometry_mod.from_bytes(geometry, vertices, faces).normalised()
+    px = _read_map(envmap_path, max_pixels, env_rows)
+    out = render_mesh_mitsuba(mesh, px, view=np.asarray(view, dtype=np.float64), size=size, spp=spp,
+                              albedo=albedo, max_depth=max_depth, seed=seed, env_rotation=env_rotation)
+    return np.asarray(out.rgb, dtype=np.float32), np.asarray(out.variance, dtype=np.float32)
 
 
 def envmap_texture(envmap_path: str, rows: int, *, max_pixels: int | None = None) -> tuple[bytes, int, int]:

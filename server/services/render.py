@@ -4,8 +4,9 @@ both (the logic behind ``server/api/routes/render.py``).
 * :meth:`RenderService.view` — a result drawn by ``relight.gl.render.Renderer`` on the GL thread. A GL context is
   bound to the thread that made it, so every GL call of the server runs on the service's single thread; the
   renderers of the most recent results are kept (their textures are uploaded once).
-* :meth:`RenderService.reference` / :meth:`RenderService.texture` — the brute-force reference and the background
-  texture, computed in a worker (:mod:`relight.worker.render`: they decode the uploaded map).
+* :meth:`RenderService.reference` / :meth:`RenderService.mesh_reference` / :meth:`RenderService.texture` — the
+  brute-force reference of an SHRM, Mitsuba's image of a mesh and the background texture, computed in a worker
+  (:mod:`relight.worker.render`: they decode the uploaded map).
 
 Images, references and environment textures are kept in a bounded LRU (``cachetools``) keyed by content: result
 digest, canonical view, parameters. Created at start-up and closed at shutdown (:class:`relight.server.state
@@ -29,6 +30,7 @@ from relight.server.config import Settings
 from relight.server.problems import Unavailable, Unprocessable
 from relight.server.services.base import content_id, in_thread
 from relight.server.services.envmaps import EnvmapService
+from relight.server.services.meshes import MeshService
 from relight.server.services.shrms import ShrmService
 from relight.worker import render as tasks
 from relight.worker.blobs import BlobStore
@@ -55,12 +57,13 @@ class _Renderers(LRUCache[str, Any]):
 
 class RenderService:
     def __init__(self, settings: Settings, store: BlobStore, cluster: Cluster, envmaps: EnvmapService,
-                 shrms: ShrmService) -> None:
+                 shrms: ShrmService, meshes: MeshService) -> None:
         self.settings = settings
         self.store = store
         self.cluster = cluster
         self.envmaps = envmaps
         self.shrms = shrms
+        self.meshes = meshes
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="relight-gl")
         self._ctx: Any = None
         self._renderers = _Renderers(RENDERER_ITEMS)  # touched on the GL thread only
@@ -131,22 +134,49 @@ class RenderService:
         image = self.cached(key)
         if image is None:
             await self.envmaps.input_ok(envmap_id)
-            fut = self.cluster.submit(tasks.reference_image, str(self.store.root), envmap_id, manifest.get("brdf"),
-                                      view, size, key=f"relight-reference-{content_id(list(key))}",
-                                      env_rows=env_rows, max_pixels=self.settings.max_pixels)
-            try:
-                image = np.asarray(await asyncio.wait_for(fut, REFERENCE_TIMEOUT_S))
-            except (InputError, ValueError, KeyError, TypeError) as exc:
-                raise Unprocessable(f"no brute-force reference for this result: {exc}") from None
-            except TimeoutError:
-                await self.cluster.cancel(fut)
-                raise Unavailable(f"the reference took longer than {REFERENCE_TIMEOUT_S:.0f} s; ask for a smaller "
-                                  "size or env_rows", headers={"Retry-After": "10"}) from None
-            except asyncio.CancelledError:
-                await self.cluster.cancel(fut)  # the client went away: free the worker
-                raise
+            image = np.asarray(await self._in_worker(
+                "brute-force reference", tasks.reference_image, str(self.store.root), envmap_id,
+                manifest.get("brdf"), view, size, key=f"relight-reference-{content_id(list(key))}",
+                env_rows=env_rows, max_pixels=self.settings.max_pixels))
             self.keep(key, image)
         return image, env_rows
+
+    async def mesh_reference(self, mesh_id: str, envmap_id: str, view: list[float], size: int, *, spp: int,
+                             albedo: float, max_depth: int, rotation: float,
+                             env_rows: int) -> tuple[np.ndarray, np.ndarray]:
+        """Mitsuba's image of the mesh under the map and its per-pixel luminance variance
+        (``relight.gl.views.mesh_reference_image``), computed in a worker (it decodes the uploaded map)."""
+        await self.envmaps.get(envmap_id)  # 404 for an unknown map
+        mesh = await self.meshes.get(mesh_id)
+        _, geometry = await self.meshes.geometry(mesh_id)
+        key = ("mesh-reference", geometry, envmap_id, tuple(view), size, spp, albedo, max_depth, rotation, env_rows)
+        cached: tuple[np.ndarray, np.ndarray] | None = self.cached(key)
+        if cached is None:
+            await self.envmaps.input_ok(envmap_id)
+            rgb, var = await self._in_worker(
+                "Mitsuba reference", tasks.mesh_reference, str(self.store.root), envmap_id, geometry, mesh.vertices,
+                mesh.faces, view, size, key=f"relight-mesh-reference-{content_id(list(key))}", spp=spp,
+                albedo=albedo, max_depth=max_depth, env_rotation=rotation, env_rows=env_rows,
+                max_pixels=self.settings.max_pixels)
+            cached = (np.asarray(rgb), np.asarray(var))
+            self.keep(key, cached)
+        return cached
+
+    async def _in_worker(self, what: str, fn: Any, *args: Any, key: str, **kw: Any) -> Any:
+        """``fn(*args, **kw)`` on the cluster: 422 for bad input, 503 past :data:`REFERENCE_TIMEOUT_S`, the task
+        cancelled when the client goes away."""
+        fut = self.cluster.submit(fn, *args, key=key, **kw)
+        try:
+            return await asyncio.wait_for(fut, REFERENCE_TIMEOUT_S)
+        except (InputError, ValueError, KeyError, TypeError) as exc:
+            raise Unprocessable(f"no {what} for this request: {exc}") from None
+        except TimeoutError:
+            await self.cluster.cancel(fut)
+            raise Unavailable(f"the {what} took longer than {REFERENCE_TIMEOUT_S:.0f} s; ask for a smaller size",
+                              headers={"Retry-After": "10"}) from None
+        except asyncio.CancelledError:
+            await self.cluster.cancel(fut)  # the client went away: free the worker
+            raise
 
     async def texture(self, envmap_id: str, rows: int) -> tuple[bytes, int, int]:
         """The map as little-endian float16 RGB texels: (bytes, height, width)."""

@@ -125,3 +125,46 @@ def test_bad_requests_are_problems(http: httpx.Client, general: str) -> None:
     assert r.status_code == 422 and r.headers["content-type"].startswith("application/problem+json")
     assert_problem(http.get(f"/shrms/{'0' * 64}/render.png"), 404)
     assert_problem(http.get(f"/envmaps/{'0' * 64}/texture.bin"), 404)
+
+
+def test_mesh_reference_is_mitsubas_image_and_bad_requests_are_problems(
+        http: httpx.Client, envmap: tuple[str, bytes], tmp_path: Path) -> None:
+    """``GET /meshes/{id}/reference.exr``: Mitsuba's render of the uploaded mesh (the same call in this process
+    gives the same image: Mitsuba is deterministic for a seed, so 1e-6 covers float32 storage), cached; bad
+    parameters are 4xx problems and leave nothing behind."""
+    from relight.conventions import luminance
+    from relight.envmap import read_envmap
+    from relight.mesh import geometry
+    from relight.mitsuba_mesh import render_mesh_mitsuba
+    from relight.resources import mesh_dir
+
+    r = http.post("/meshes?name=teapot.obj", content=(mesh_dir() / "teapot.obj").read_bytes())
+    assert r.status_code in (200, 201), r.text
+    info = r.json()
+    mesh = geometry.from_bytes(http.get(f"/meshes/{info['id']}/geometry.bin").content, info["vertices"],
+                               info["faces"]).normalised()
+    url = f"/meshes/{info['id']}/reference.exr"
+    q = {"envmap": envmap[0], "view": "0,0.6,0.8", "size": 32, "spp": 16, "rotation": 30, "albedo": 0.5}
+    r = http.get(url, params=q)
+    assert r.status_code == 200, r.text
+    got = exr_image(r.content)
+    (tmp_path / "m.exr").write_bytes(envmap[1])
+    px = np.asarray(read_envmap(tmp_path / "m.exr").pixels, dtype=np.float32)  # 32 rows: not resampled
+    want = render_mesh_mitsuba(mesh, px, view=np.array([0.0, 0.6, 0.8]), size=32, spp=16, albedo=0.5,
+                               env_rotation=np.radians(30.0))
+    np.testing.assert_allclose(got, want.rgb, rtol=1e-6, atol=1e-6 * want.rgb.max())
+    noise = float(np.sqrt(want.variance.sum() / np.sum(luminance(want.rgb) ** 2)))
+    assert float(r.headers["X-Reference-Noise"]) == pytest.approx(noise, rel=1e-4)
+    assert http.get(url, params=q).content == r.content  # cached by content
+    png = http.get(f"/meshes/{info['id']}/reference.png", params=q)
+    assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
+
+    meshes_before = http.get("/meshes").json()
+    assert_problem(http.get(url, params={**q, "envmap": "0" * 64}), 404)
+    assert_problem(http.get(f"/meshes/{'0' * 64}/reference.exr", params=q), 404)
+    assert_problem(http.get(url, params={**q, "size": 512}), 422, "size")
+    assert_problem(http.get(url, params={**q, "max_depth": 1}), 422, "max_depth")
+    assert_problem(http.get(url, params={**q, "size": 256, "spp": 1024}), 422, "spp")
+    assert_problem(http.get(url, params={**q, "view": "0,0,0"}), 422, "non-zero")
+    assert_problem(http.get(url, params={k: v for k, v in q.items() if k != "envmap"}), 422, "envmap")
+    assert http.get("/meshes").json() == meshes_before

@@ -17,6 +17,7 @@ Screenshots: ``test-artifacts/web/*.png``.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 from typing import Any
@@ -40,11 +41,18 @@ VIEW = (0.3, 0.8, -0.5)
 SIZE = 128
 
 
-def upload_map(page: Any, tmp_path: Any, name: str = "sky.exr") -> str:
-    data = exr_bytes(make_envmap(64, seed=3), tmp_path)
+def upload_map(page: Any, tmp_path: Any, name: str = "sky.exr", data: bytes | None = None) -> str:
+    """Upload ``data`` (default: a synthetic 64-row map) through the page's file input; its id once the viewer
+    lights with it."""
+    if data is None:
+        data = exr_bytes(make_envmap(64, seed=3), tmp_path)
     page.set_input_files("#envmap-file", files=[{"name": name, "mimeType": "image/x-exr", "buffer": data}])
-    page.wait_for_function("window.relight.envmapId && document.querySelector('#plan dl')", timeout=120_000)
-    return str(page.evaluate("window.relight.envmapId"))
+    # the page first selects a map the server already holds (other tests' uploads): wait for this one, by its id
+    # (the SHA-256 of the file), to be the one the viewer lights with
+    expected = hashlib.sha256(data).hexdigest()
+    page.wait_for_function("(id) => window.relight.envmapId === id && window.relight.environmentId === id "
+                           "&& document.querySelector('#plan dl')", arg=expected, timeout=120_000)
+    return expected
 
 
 def plan_text(page: Any) -> str:

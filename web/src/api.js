@@ -108,6 +108,17 @@ export class Api {
     return { data: await resp.arrayBuffer(), envRows: Number(resp.headers.get('X-Reference-Env-Rows')) || null };
   }
 
+  /**
+   * GET /meshes/{id}/reference.exr: Mitsuba's image of the mesh (`rotation` in degrees about +Y);
+   * {data: ArrayBuffer, noise: relative Monte Carlo standard deviation of the image's luminance}.
+   */
+  async meshReference(id, { envmap, view, size, spp = 64, rotation = 0, albedo = 0.8, maxDepth = 2 }) {
+    const q = new URLSearchParams({ envmap, view: view.map((x) => x.toFixed(6)).join(','), size: String(size),
+      spp: String(spp), rotation: rotation.toFixed(6), albedo: albedo.toFixed(6), max_depth: String(maxDepth) });
+    const resp = await this.request('GET', `/meshes/${id}/reference.exr?${q}`, { as: 'response' });
+    return { data: await resp.arrayBuffer(), noise: Number(resp.headers.get('X-Reference-Noise')) };
+  }
+
   openapi() {
     return this.request('GET', '/openapi.json');
   }

@@ -379,8 +379,12 @@ async function selectEnvmap(id) {
   materialChanged();
   try {
     const tex = await state.api.envmapTexture(id, 256);
+    if (state.envmapId !== id) {
+      return; // another map was selected while this texture loaded: the later choice wins
+    }
     const halves = new Uint16Array(tex.data);
     state.viewer.setEnvironment(halves, tex.height, tex.width);
+    state.environmentId = id; // the map the viewer lights with (tests wait for it)
     showError('envmap-error', null);
   } catch (err) {
     showError('envmap-error', err);
@@ -460,6 +464,8 @@ async function runCompare() {
   }
   $('compare').disabled = true;
   $('cmp-err-caption').textContent = 'computing the reference…';
+  $('cmp-ours-caption').textContent = 'SHRM (WebGL)';
+  $('cmp-ref-caption').textContent = 'reference (angular brute force, slow)';
   $('comparison').hidden = false;
   try {
     const result = await compare({

@@ -18,6 +18,26 @@ export function sphereMask(size) {
   return mask;
 }
 
+/** Pixels whose 3 x 3 neighbourhood is covered (row-major size x size masks of 0/1). */
+export function interior(coverage, size) {
+  const out = new Uint8Array(size * size);
+  for (let y = 1; y < size - 1; y += 1) {
+    for (let x = 1; x < size - 1; x += 1) {
+      let all = 1;
+      for (let dy = -1; dy <= 1 && all; dy += 1) {
+        for (let dx = -1; dx <= 1; dx += 1) {
+          if (!coverage[(y + dy) * size + x + dx]) {
+            all = 0;
+            break;
+          }
+        }
+      }
+      out[y * size + x] = all;
+    }
+  }
+  return out;
+}
+
 export function luminance(rgb, i) {
   return LUMA_R * rgb[3 * i] + LUMA_G * rgb[3 * i + 1] + LUMA_B * rgb[3 * i + 2];
 }

@@ -2,7 +2,12 @@
 // with diffuse PRT (prt_object.js), and its visibility job (POST /visibility, kind diffuse_transfer) followed to
 // the end; the shading modes switch between unshadowed irradiance, ambient occlusion x irradiance and the
 // SH-transfer shadows. window.relight.prt is the PrtObject (tests), window.relight.prtJobId the last job.
+// "Compare with Mitsuba" (mesh_compare.js) puts Mitsuba's image of the same view beside the current mode's, with a
+// false-colour difference; window.relight.lastMeshComparison holds its numbers (tests).
+import { compareMesh } from './mesh_compare.js';
 import { PrtObject } from './prt_object.js';
+
+const percent = (x) => (Number.isFinite(x) ? `${(100 * x).toPrecision(3)} %` : '—');
 
 export function initShadows(state, $, showError) {
   const status = (text) => { $('prt-status').textContent = text; };
@@ -86,11 +91,40 @@ export function initShadows(state, $, showError) {
     }
   }
 
+  async function compareWithMitsuba() {
+    showError('prt-error', null);
+    $('prt-compare').disabled = true;
+    $('comparison').hidden = false;
+    $('cmp-ours-caption').textContent = `PRT (WebGL, ${state.prt?.mode ?? '—'})`;
+    $('cmp-ref-caption').textContent = 'Mitsuba 3 (path traced, direct light, exact shadows)';
+    $('cmp-err-caption').textContent = 'rendering with Mitsuba…';
+    try {
+      const result = await compareMesh({
+        viewer: state.viewer, api: state.api, envmapId: state.envmapId, size: Number($('compare-size').value),
+        spp: Number($('prt-spp').value),
+        canvases: { ours: $('cmp-shrm'), reference: $('cmp-ref'), error: $('cmp-err') },
+      });
+      state.lastMeshComparison = result;
+      $('cmp-err-caption').textContent = `${result.mode}: ${percent(result.rms)} relative RMS, max `
+        + `${percent(result.max)}; Mitsuba's noise ${percent(result.noise)} (${result.spp} spp; |ΔY| / max Y, log `
+        + `colour 1e-4…1e-1, silhouettes excluded)`;
+      return result;
+    } catch (err) {
+      $('cmp-err-caption').textContent = 'error';
+      showError('prt-error', err);
+      throw err;
+    } finally {
+      $('prt-compare').disabled = false;
+    }
+  }
+
+  $('prt-compare').addEventListener('click', () => compareWithMitsuba().catch(() => {}));
   $('prt-show').addEventListener('click', () => showMesh().catch((err) => showError('prt-error', err)));
   $('prt-compute').addEventListener('click', computeShadows);
   $('prt-mode').addEventListener('change', () => state.prt?.setMode($('prt-mode').value));
   state.refreshMeshes = refreshMeshes;
   state.showMesh = showMesh;
   state.loadVisibility = loadVisibility;
+  state.compareWithMitsuba = compareWithMitsuba;
   return refreshMeshes().catch((err) => showError('prt-error', err));
 }

@@ -26,6 +26,12 @@ const SHADER_FILES = ['fullscreen.vert.glsl', 'object.vert.glsl', 'object.frag.g
 const HALF_ONE = 0x3c00;
 const ORBIT_MIN_DISTANCE = 2.0; // the unit sphere's proxy box reaches sqrt(3)
 
+/** A size x size float RGBA render target for linear read-backs. */
+function linearTarget(size) {
+  return new THREE.WebGLRenderTarget(size, size, { type: THREE.FloatType, format: THREE.RGBAFormat,
+    minFilter: THREE.NearestFilter, magFilter: THREE.NearestFilter, depthBuffer: true, generateMipmaps: false });
+}
+
 export class ShrmViewer {
   constructor(canvas, { shaderBase = 'shaders/' } = {}) {
     this.canvas = canvas;
@@ -428,8 +434,7 @@ export class ShrmViewer {
     const saved = { fixed: this.fixedView, shape: obj.shape, geometry: obj.mesh.geometry,
       center: obj.center.clone(), radius: obj.radius, target: this.sceneTarget.clone(),
       visible: this.objects.map((o) => o.mesh.visible), material: obj.mesh.material };
-    const target = new THREE.WebGLRenderTarget(size, size, { type: THREE.FloatType, format: THREE.RGBAFormat,
-      minFilter: THREE.NearestFilter, magFilter: THREE.NearestFilter, depthBuffer: true, generateMipmaps: false });
+    const target = linearTarget(size);
     const sphere = sphereProxy();
     try {
       this.objects.forEach((o) => { o.mesh.visible = o === obj; });
@@ -451,25 +456,9 @@ export class ShrmViewer {
       obj.mesh.material = obj.material(shading, 'linear');
       const bg = this.background.visible;
       this.background.visible = false;
-      this.renderer.setRenderTarget(target);
-      this.renderer.setClearColor(0x000000, 0);
-      this.renderer.clear();
-      this.renderer.render(this.scene, cam);
-      this.renderer.setClearColor(0x000000, 1);
-      const raw = new Float32Array(size * size * 4);
-      this.renderer.readRenderTargetPixels(target, 0, 0, size, size, raw);
+      const { rgb } = this._drawLinear(target, cam, size);
       this.background.visible = bg;
-      const out = new Float32Array(size * size * 3);
-      for (let y = 0; y < size; y += 1) {
-        for (let x = 0; x < size; x += 1) {
-          const s = ((size - 1 - y) * size + x) * 4;
-          const d = (y * size + x) * 3;
-          out[d] = raw[s];
-          out[d + 1] = raw[s + 1];
-          out[d + 2] = raw[s + 2];
-        }
-      }
-      return out;
+      return rgb;
     } finally {
       this.renderer.setRenderTarget(null);
       target.dispose();
@@ -485,6 +474,62 @@ export class ShrmViewer {
       this.objects.forEach((o, k) => { o.mesh.visible = saved.visible[k]; });
       obj.updateMaterial();
     }
+  }
+
+  /**
+   * Linear radiance of the PrtObject (the service mesh with diffuse PRT) in its current mode, seen
+   * orthographically from `view` (relight.mesh_render's camera: the mesh normalised into the unit ball, looked at
+   * from 3 V) with the environment turned by the current rotation: {rgb: Float32Array RGB, coverage: Uint8Array
+   * (1 where the mesh covers the pixel centre)}, size x size, row 0 at the top.
+   */
+  renderLinearPrt(view, size) {
+    const prt = this.prt;
+    if (!prt) {
+      throw new Error('no mesh with PRT shown');
+    }
+    const saved = { fixed: this.fixedView, target: this.sceneTarget.clone(), material: prt.mesh.material,
+      bg: this.background.visible };
+    const target = linearTarget(size);
+    try {
+      this.sceneTarget.set(0, 0, 0);
+      this.setFixedView({ view, orthographic: true });
+      const cam = this._activeCamera();
+      this._prepare(cam, size, size);
+      prt.mesh.material = prt.material(prt.modes().includes(prt.mode) ? prt.mode : 'unshadowed', 'linear');
+      this.background.visible = false;
+      return this._drawLinear(target, cam, size);
+    } finally {
+      this.renderer.setRenderTarget(null);
+      target.dispose();
+      this.background.visible = saved.bg;
+      prt.mesh.material = saved.material;
+      this.setFixedView(saved.fixed);
+      this.sceneTarget.copy(saved.target);
+    }
+  }
+
+  /** Draw the scene into the float target; RGB and coverage (alpha > 0) with row 0 at the top. */
+  _drawLinear(target, cam, size) {
+    this.renderer.setRenderTarget(target);
+    this.renderer.setClearColor(0x000000, 0);
+    this.renderer.clear();
+    this.renderer.render(this.scene, cam);
+    this.renderer.setClearColor(0x000000, 1);
+    const raw = new Float32Array(size * size * 4);
+    this.renderer.readRenderTargetPixels(target, 0, 0, size, size, raw);
+    const rgb = new Float32Array(size * size * 3);
+    const coverage = new Uint8Array(size * size);
+    for (let y = 0; y < size; y += 1) {
+      for (let x = 0; x < size; x += 1) {
+        const s = ((size - 1 - y) * size + x) * 4;
+        const d = y * size + x;
+        rgb[3 * d] = raw[s];
+        rgb[3 * d + 1] = raw[s + 1];
+        rgb[3 * d + 2] = raw[s + 2];
+        coverage[d] = raw[s + 3] > 0 ? 1 : 0;
+      }
+    }
+    return { rgb, coverage };
   }
 
   /**

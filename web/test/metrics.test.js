@@ -2,7 +2,7 @@
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
-import { falseColour, relativeError, sphereMask } from '../src/metrics.js';
+import { falseColour, interior, relativeError, sphereMask } from '../src/metrics.js';
 
 test('sphereMask covers pi/4 of the square and is symmetric', () => {
   const n = 200;
@@ -26,4 +26,22 @@ test('relativeError: a uniform 1 % error is 1 % relative RMS; identical images g
   const img = falseColour(test1, ref, mask);
   assert.equal(img.length, n * n * 4);
   assert.deepEqual([...img.slice(0, 4)], [0, 0, 0, 255]);
+});
+
+test('interior: a covered square loses its one-pixel rim; a hole removes its 3 x 3 neighbourhood', () => {
+  const n = 10;
+  const cov = new Uint8Array(n * n);
+  for (let y = 2; y < 8; y += 1) {
+    for (let x = 2; x < 8; x += 1) {
+      cov[y * n + x] = 1;
+    }
+  }
+  const inner = interior(cov, n);
+  assert.equal(inner.reduce((a, b) => a + b, 0), 16); // 4 x 4 of the 6 x 6 square
+  assert.equal(inner[2 * n + 2], 0);
+  assert.equal(inner[3 * n + 3], 1);
+  cov[5 * n + 5] = 0;
+  const holed = interior(cov, n);
+  assert.equal(holed.reduce((a, b) => a + b, 0), 16 - 9 + 0); // the hole's 3 x 3 block is within the 4 x 4
+  assert.equal(interior(new Uint8Array(n * n).fill(1), n)[0], 0); // the image border is never interior
 });

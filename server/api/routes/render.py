@@ -7,6 +7,11 @@ environment map as a float16 texture for the viewer's background.
   moderngl (``relight.gl.render``) in the server process: the coefficient texture is the service's own output.
 * ``GET /shrms/{id}/reference.png|.exr?view=x,y,z&size=N`` — the angular-domain brute force of the same sphere
   image (``relight.reference_view.reference_sphere``), computed in a worker process (it decodes the uploaded map).
+* ``GET /meshes/{id}/reference.png|.exr?envmap=ID&view=x,y,z&size=N&spp=S&max_depth=D&albedo=A&rotation=DEG``
+  — Mitsuba 3's path-traced image of the mesh (Lambertian, exact self-shadowing; ``max_depth`` 2 = direct light,
+  each step above one interreflection bounce) under the map turned by ``rotation`` about +Y, with the orthographic
+  camera of the viewer's fixed views (``relight.gl.views.mesh_reference_image``); ``X-Reference-Noise`` is the
+  relative Monte Carlo standard deviation of the whole image's luminance.
 * ``GET /envmaps/{id}/texture.bin?rows=R`` — the map as little-endian float16 RGB, ``X-Texture-Shape: H,W,3``.
 
 PNGs go through the project's display transform (``exposure`` stops, ``tonemap`` aces|reinhard|none); EXRs are
@@ -26,6 +31,7 @@ from fastapi import APIRouter, Query, Request
 from starlette.responses import Response
 
 from relight.contract.models import parse_view
+from relight.conventions import luminance
 from relight.server.api.deps import RenderDep
 from relight.server.problems import Unprocessable, problem_responses
 from relight.server.services.base import in_thread
@@ -107,6 +113,40 @@ async def reference_view(
     return Response(body, media_type=MEDIA[fmt], headers={"Cache-Control": "public, max-age=3600",
                                                           "X-Reference-Env-Rows": str(rows),
                                                           "Access-Control-Expose-Headers": "X-Reference-Env-Rows"})
+
+
+@router.get("/meshes/{mesh_id}/reference.{fmt}", response_class=Response,
+            responses={200: {"content": {"image/png": {}, "image/x-exr": {}}}, **ERRORS})
+async def mesh_reference(
+    mesh_id: str,
+    fmt: Format,
+    renders: RenderDep,
+    envmap: Annotated[str, Query(description="the environment map's id", min_length=1, max_length=128)],
+    view: ViewQuery = "0,0,1",
+    size: Annotated[int, Query(ge=8, le=256, description="image edge in pixels")] = 128,
+    spp: Annotated[int, Query(ge=1, le=4096, description="Mitsuba samples per pixel (size^2 x spp at most "
+                                                         "256^2 x 256)")] = 64,
+    max_depth: Annotated[int, Query(ge=2, le=5, description="path depth: 2 = direct light with exact shadows, "
+                                                            "each step above adds one interreflection bounce")] = 2,
+    albedo: Annotated[float, Query(ge=0.0, le=1.0, description="Lambertian albedo")] = 0.8,
+    rotation: Annotated[float, Query(ge=-360.0, le=360.0, description="environment rotation about +Y, degrees")]
+    = 0.0,
+    env_rows: Annotated[int, Query(ge=8, le=256, description="area-resample the map to this many rows first")] = 64,
+    exposure: ExposureQuery = 0.0,
+    tonemap: TonemapQuery = "aces",
+) -> Response:
+    """Mitsuba's image of the mesh for the viewer's comparison panel (slow: seconds)."""
+    v = _view(view)
+    rgb, var = await renders.mesh_reference(mesh_id, envmap, v, size, spp=spp, albedo=round(albedo, 6),
+                                            max_depth=max_depth, rotation=math.radians(rotation), env_rows=env_rows)
+    lum = luminance(rgb)
+    noise = float(np.sqrt(var.sum()) / max(np.sqrt(np.square(lum).sum()), 1e-30))
+    headers = {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.reference": "mitsuba3",
+               "relight.spp": str(spp), "relight.max_depth": str(max_depth), "relight.env_rows": str(env_rows)}
+    body = await in_thread(_encode, rgb, fmt, exposure, tonemap, headers)
+    return Response(body, media_type=MEDIA[fmt], headers={
+        "Cache-Control": "public, max-age=3600", "X-Reference-Noise": f"{noise:.6g}", "X-Reference-Spp": str(spp),
+        "Access-Control-Expose-Headers": "X-Reference-Noise, X-Reference-Spp"})
 
 
 @router.get("/envmaps/{envmap_id}/texture.bin", response_class=Response,

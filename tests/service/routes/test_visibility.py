@@ -4,6 +4,7 @@ over the server's two workers by vertex blocks; its files against the core compu
 from __future__ import annotations
 
 import io
+import time
 from typing import Any
 
 import httpx
@@ -100,4 +101,60 @@ def test_bad_visibility_requests(http: httpx.Client) -> None:
     assert_problem(http.post("/visibility", json={"mesh": mesh_id, "bounces": 1}), 422, "diffuse_transfer")
     assert_problem(http.post("/visibility", json={"mesh": mesh_id, "rays": 4}), 422, "rays")
     assert_problem(http.get("/visibility/" + "f" * 64), 404, "no visibility")
+    assert_healthy(http)
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of every process under the server (its Dask workers, the planning sandboxes)."""
+    import psutil
+
+    total = 0.0
+    for p in psutil.Process(pid).children(recursive=True):
+        try:
+            t = p.cpu_times()
+            total += t.user + t.system
+        except psutil.NoSuchProcess:
+            continue
+    return total
+
+
+def test_cancelling_a_fanned_out_job_stops_its_blocks(server: Any, http: httpx.Client) -> None:
+    """A job fanned out in 29 blocks over the two workers (bunny, 65536 rays per vertex, 64 vertices per block:
+    4.2 M rays a block), cancelled once its first block is in: it ends ``cancelled`` with no result, its progress
+    stops, and the blocks stop too: the workers' CPU time goes flat (a 2 s window with at most 0.3 CPU s, for
+    heartbeats). The allowance for the blocks in flight is scaled by the first block's own duration T, so the
+    check holds on a loaded machine: quiet within 3 T + 4 s of the cancel, while the uncancelled remainder (28
+    blocks over 2 workers, about 14 T) would keep both workers busy far longer. CPU time is what is asserted."""
+    mesh_id = sample_id(http, "bunny")
+    body = {"mesh": mesh_id, "order": 3, "rays": 65536, "kind": "diffuse_transfer", "block": 64, "seed": 77}
+    r = http.post("/visibility", json=body)
+    assert r.status_code == 202, r.text
+    job_id = r.json()["id"]
+    wait_until(lambda: http.get(f"/jobs/{job_id}").json()["state"] == "running", 240, "the job to run",
+               interval=0.05)
+    t_start = time.monotonic()
+    running = wait_until(lambda: (j := http.get(f"/jobs/{job_id}").json())["progress"] > 0.06 and j, 600,
+                         "the first block to finish", interval=0.05)
+    block_s = time.monotonic() - t_start
+    assert running["state"] == "running" and running["stage"] == "tracing", running
+    r = http.delete(f"/jobs/{job_id}")
+    assert r.status_code == 200 and r.json()["state"] == "cancelled", r.text
+    progress = http.get(f"/jobs/{job_id}").json()["progress"]
+
+    used: list[float] = []
+
+    def quiet() -> bool:
+        before = _cpu_seconds(server.pid)
+        time.sleep(2.0)
+        used.append(_cpu_seconds(server.pid) - before)
+        return used[-1] < 0.3
+
+    try:
+        wait_until(quiet, 3 * block_s + 4, f"the workers to stop computing cancelled blocks (T = {block_s:.1f} s)",
+                   interval=0.0)
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}; CPU seconds per 2 s window: {used}") from None
+    job = http.get(f"/jobs/{job_id}").json()
+    assert job["state"] == "cancelled" and job["progress"] == progress, job
+    assert http.get(f"/visibility/{job_id}").status_code in (404, 409)
     assert_healthy(http)
