@@ -10,7 +10,7 @@ Two packings of spherical-harmonic coefficients exist in the project:
 ``full`` — l-major with every order ``m = -l..l``: index ``l^2 + l + m``; ``(lmax + 1)^2`` entries, degree ``l``
     occupying the block ``[l^2, (l + 1)^2)`` (:func:`full_block`). Used for real-basis coefficients
     (:func:`relight.sh.to_real`), the complex coefficients of any (not necessarily real) field
-    (:func:`relight.wigner.rotate_alm`), the SHRM terms ``(p, q)`` (:mod:`relight.shrm`) and the viewer's texture
+    (:func:`relight.alm_rotation.rotate_alm`), the SHRM terms ``(p, q)`` (:mod:`relight.shrm`) and the viewer's texture
     layers (:mod:`relight.gl.layout`). The same formula serves (l, m) and (p, q).
 
 (The BRDF coefficients ``rho_hat_lpq`` of :mod:`relight.brdf.lpq` are not packed: a dense array ``rho[l, p, q]``

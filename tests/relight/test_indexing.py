@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from relight import indexing, sh, wigner
+from relight import alm_rotation, indexing, sh
 
 ORDERS = [0, 1, 2, 7, 64]
 
@@ -75,7 +75,7 @@ def test_out_of_range_pairs_name_the_values() -> None:
 
 def test_real_basis_and_rotation_use_the_full_layout() -> None:
     """``sh.to_real`` places Yr_lm at full_index(l, m): a single complex a_lm (m > 0) lands on exactly the two
-    entries (l, +-m); ``wigner.rotate_alm`` reads the full layout: a rotation about z multiplies a_lm by
+    entries (l, +-m); ``alm_rotation.rotate_alm`` reads the full layout: a rotation about z multiplies a_lm by
     e^{-i m alpha} at full_index(l, m)."""
     lmax = 5
     l, m = 4, 3
@@ -86,7 +86,7 @@ def test_real_basis_and_rotation_use_the_full_layout() -> None:
     full = np.zeros(indexing.full_size(lmax), dtype=np.complex128)
     full[indexing.full_index(l, m)] = 1.0
     alpha = 0.3
-    rotated = wigner.rotate_alm(full, lmax, alpha, 0.0, 0.0, method="reference")
+    rotated = alm_rotation.rotate_alm(full, lmax, alpha, 0.0, 0.0, method="reference")
     expected = np.zeros_like(full)
     expected[indexing.full_index(l, m)] = np.exp(-1j * m * alpha)
     np.testing.assert_allclose(rotated, expected, atol=1e-13)  # exact phase up to rounding of one product

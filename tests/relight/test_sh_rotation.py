@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from relight import indexing, sh
+from relight.alm_rotation import rotation_matrix_zyz
 from relight.errors import InputError
 from relight.sh_rotation import (
     SH_FROM_WORLD,
@@ -27,7 +28,7 @@ from relight.sh_rotation import (
 )
 from relight.shrm import real_harmonics
 from relight.tangent_frames import projected_frames
-from relight.wigner import rotation_matrix_zyz, wigner_D_matrix
+from relight.wigner import wigner_D_matrix
 
 LMAX = 14
 F64 = NDArray[np.float64]
