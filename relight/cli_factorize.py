@@ -23,65 +23,34 @@ from relight.errors import InputError
 
 #: Grid size N (N nodes in cos theta, N azimuths: the paper's N^4 matrix, §3.2) when --resolution is not given.
 DEFAULT_RESOLUTION = 40
-#: Singular values written to the JSON (at least every one counted in K is listed).
-MAX_VALUES = 400
-
-
-def _keys(d: dict[float, int]) -> dict[str, int]:
-    return {f"{t:g}": int(k) for t, k in d.items()}
-
-
 def cmd_factorize(args: argparse.Namespace) -> int:
-    from relight.brdf.frame import FrameBRDF
-    from relight.brdf.spec import brdf_to_spec, parse_frame_brdf
-    from relight.factor_kernel import unwrap
-    from relight.factor_predict import predict_terms
-    from relight.factorization import convergence, factorize
+    from relight.brdf.spec import parse_frame_brdf
+    from relight.factor_analysis import analyse
 
-    brdf = unwrap(parse_frame_brdf(args.brdf))
-    n = args.resolution
-    kwargs: dict[str, Any] = {
-        "domain": args.domain, "n_theta": n, "n_phi": args.phi if args.phi is not None else n, "grid": args.grid,
-        "include_cosine": not args.no_cosine, "method": args.method,
-    }
     if args.factors < 0:
         raise InputError(f"--factors must be >= 0, got {args.factors}")
-    res = factorize(brdf, n_factors=args.factors, n_values=min(MAX_VALUES, 2 * n * n), **kwargs)
-    try:
-        pred: dict[str, Any] | None = predict_terms(brdf, domain=args.domain, include_cosine=not args.no_cosine)
-    except InputError as exc:
-        pred = None
-        pred_note = str(exc)
-    conv = None
-    if not args.no_convergence:
-        c = convergence(brdf, **kwargs)
-        conv = {k: v for k, v in c.items() if k != "results"}
+    n = args.resolution
+    doc, res = analyse(parse_frame_brdf(args.brdf), domain=args.domain, resolution=n, phi=args.phi, grid=args.grid,
+                       include_cosine=not args.no_cosine, method=args.method, factors=args.factors,
+                       check_convergence=not args.no_convergence)
+    pred = doc["prediction"] if doc["predicted_terms"] is not None else None
+    conv = doc["convergence"]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    doc = res.as_dict(MAX_VALUES)
-    doc["brdf"] = brdf.spec() if isinstance(brdf, FrameBRDF) else brdf_to_spec(brdf)
-    doc["predicted_terms"] = _keys(pred["terms"]) if pred else None
-    if pred:
-        doc["prediction"] = {k: (_keys(v) if isinstance(v, dict) and all(isinstance(x, float) for x in v) else v)
-                             for k, v in pred.items()}
-    else:
-        doc["prediction"] = {"method": None, "note": pred_note}
-    doc["convergence"] = conv
     if res.factors:
         np.save(out / "factors_g.npy", np.stack([f.g for f in res.factors]).astype(np.float32))
         np.save(out / "factors_h.npy", np.stack([f.h for f in res.factors]).astype(np.float32))
         np.savez(out / "grid.npz", theta=res.grid.theta, phi=res.grid.phi,
                  weights=res.grid.weights.reshape(res.grid.n_theta, res.grid.n_phi))
-        doc["factors"] = {"files": ["factors_g.npy", "factors_h.npy", "grid.npz"],
-                          "sigma": [f.sigma for f in res.factors], "m": [f.m for f in res.factors]}
+        doc["factors"]["files"] = ["factors_g.npy", "factors_h.npy", "grid.npz"]
     (out / "factorization.json").write_text(json.dumps(doc, indent=2))
     print(f"{args.brdf}: {res.method} SVD over the {args.domain}, {res.grid.n_theta} x {res.grid.n_phi} "
           f"{res.grid.kind} nodes, {doc['quantity']}, {res.seconds:.2f} s")
     for t, k in res.terms.items():
-        p = pred["terms"].get(t) if pred else None
+        p = pred["terms"].get(f"{t:g}") if pred else None
         print(f"  {t:.0%} of the energy: K = {k}" + (f"  (predicted {p})" if p is not None else ""))
     if pred and "paper_terms" in pred:
-        print(f"  paper's (l*)^2 / 4: {_keys(pred['paper_terms'])}, l* = {_keys(pred['l_star'])}")
+        print(f"  paper's (l*)^2 / 4: {pred['paper_terms']}, l* = {pred['l_star']}")
     if pred and "paper" in pred:
         print(f"  paper's closed forms: 6s = {pred['paper']['eq12_6s']:g}, Fig. 3A = {pred['paper']['fig3a']:g}")
     if conv:

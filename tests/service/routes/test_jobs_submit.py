@@ -89,6 +89,7 @@ SAMPLES: dict[str, Callable[[dict[str, Any], int], dict[str, Any]]] = {
     "gaussian_fit": lambda s, k: {"brdf": "phong:s=16", "lobes": 1, "max_lobes": 1, "elevations": 2 + k},
     "gaussian_chain": lambda s, k: {"envmap": s["env"], "levels": 2 + k},
     "ibl": lambda s, k: {"envmap": s["env"], "target": "gltf", "size": 4, "levels": 2 + k},
+    "factorization": lambda s, k: {"brdf": "phong:s=8", "resolution": 8 + k, "factors": 2},
 }
 
 
