@@ -1,0 +1,150 @@
+"""In-out factorized PRT on the GPU (moderngl, EGL; Mesa llvmpipe works): eq. 4 of Mahajan, Tseng & Ramamoorthi
+2008 per vertex, the same GLSL as the viewer (``web/shaders/inout.vert.glsl``, fragment ``sh_table.frag.glsl``).
+
+Uploads: the per-vertex transport ``T`` (V, K, (F+1)^2) of ``relight.inout_prt`` as a float16 data texture
+(``relight.vertex_texture.pack_float16``, as the service would serve it) and the factors' ``sigma_k h_k`` profiles
+with their (m, parity) as an R32F texture of K rows. The mesh is drawn indexed from its canonical arrays, so
+``gl_VertexID`` indexes the transport; the camera is ``relight.gl.render``'s orthographic one with the mesh moved
+into the unit ball (``relight.gl.prt.model_matrix``). Lighting and view are uniforms: a new frame, not new data.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from relight.errors import InputError
+from relight.gl import shaders
+from relight.gl.prt import PROBE_WIDTH, _set, model_matrix
+from relight.gl.render import ORTHO_DISTANCE, create_context, view_projection
+from relight.inout_factors import InOutFactors
+from relight.mesh.model import TriangleMesh
+from relight.vertex_texture import pack_float16
+
+
+def factor_texture(factors: InOutFactors) -> NDArray[np.float32]:
+    """(K, N + 2) float32 rows: m, parity, then sigma_k times h_k's radial profile (the shader's ``u_factors``)."""
+    out = np.empty((factors.terms, factors.theta.size + 2), dtype=np.float32)
+    out[:, 0], out[:, 1] = factors.m, factors.parity
+    out[:, 2:] = factors.sigma[:, None] * factors.h
+    return out
+
+
+class InOutRenderer:
+    """One mesh, its factors and its per-vertex transport on the GPU (module docstring)."""
+
+    def __init__(self, mesh: TriangleMesh, factors: InOutFactors, transport: ArrayLike, *, ctx: Any = None) -> None:
+        t = np.asarray(transport, dtype=np.float64)
+        if t.ndim != 3 or t.shape[:2] != (mesh.n_vertices, factors.terms):
+            raise InputError(f"transport must be ({mesh.n_vertices}, {factors.terms}, n), got shape {t.shape}")
+        order = int(round(np.sqrt(t.shape[2]))) - 1
+        if (order + 1) ** 2 != t.shape[2]:
+            raise InputError(f"the transport's last axis must be (F+1)^2 long, got {t.shape[2]}")
+        self.mesh, self.factors, self.order = mesh, factors, order
+        self.ctx = ctx if ctx is not None else create_context()
+        inter = np.concatenate([mesh.positions, mesh.normals], axis=1).astype("<f4")
+        self.vbo = self.ctx.buffer(inter.tobytes())
+        self.ibo = self.ctx.buffer(np.ascontiguousarray(mesh.faces, dtype="<u4").tobytes())
+        tex, lay = pack_float16(t)
+        #: the transport as uploaded (float16-rounded), for CPU references
+        self.uploaded = np.asarray(tex, dtype=np.float64).reshape(-1, 4)[: mesh.n_vertices * lay["texels_per_vertex"]]
+        self.uploaded = self.uploaded.reshape(mesh.n_vertices, -1)[:, : t[0].size].reshape(t.shape)
+        self.transport = self.ctx.texture((lay["width"], lay["height"]), 4, np.ascontiguousarray(tex, "<f2").tobytes(),
+                                          dtype="f2")
+        ft = factor_texture(factors)
+        self.factor_tex = self.ctx.texture((ft.shape[1], ft.shape[0]), 1, ft.tobytes(), dtype="f4")
+        for tx in (self.transport, self.factor_tex):
+            tx.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+        self._progs: dict[bool, Any] = {}
+
+    def release(self) -> None:
+        for obj in (self.vbo, self.ibo, self.transport, self.factor_tex, *self._progs.values()):
+            obj.release()
+
+    def program(self, probe: bool = False) -> Any:
+        if probe not in self._progs:
+            defs: dict[str, object] = {"INOUT_ORDER": self.order, "INOUT_TERMS": self.factors.terms,
+                                       "OUTPUT_LINEAR": None}
+            if probe:
+                defs["PROBE"] = None
+            self._progs[probe] = self.ctx.program(
+                vertex_shader=shaders.build("inout.vert.glsl", defines=defs),
+                fragment_shader=shaders.build("sh_table.frag.glsl", defines={"OUTPUT_LINEAR": None}))
+        return self._progs[probe]
+
+    def _uniforms(self, prog: Any, lighting: ArrayLike, view: ArrayLike) -> None:
+        light = np.asarray(lighting, dtype=np.float64)
+        n = (self.order + 1) ** 2
+        if light.ndim != 2 or light.shape[0] < n or light.shape[1] != 3:
+            raise InputError(f"lighting must be (>= {n}, 3) real coefficients, got shape {light.shape}")
+        v = np.asarray(view, dtype=np.float64)
+        _set(prog, "u_light", [tuple(float(x) for x in row) for row in light[:n]])
+        _set(prog, "u_view", tuple(float(x) for x in v / np.linalg.norm(v)))
+        _set(prog, "u_eye", (0.0, 0.0, 0.0, 0.0))
+        _set(prog, "u_transport", 0)
+        _set(prog, "u_factors", 1)
+        self.transport.use(location=0)
+        self.factor_tex.use(location=1)
+
+    def _vao(self, prog: Any, indexed: bool) -> Any:
+        used = [nm for nm in ("a_position", "a_normal") if prog.get(nm, None) is not None]
+        fmt = " ".join("3f" if nm in used else "12x" for nm in ("a_position", "a_normal"))
+        content = [(self.vbo, fmt, *used)] if used else []
+        if indexed:
+            return self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
+        return self.ctx.vertex_array(prog, content)
+
+    def probe(self, lighting: ArrayLike, view: ArrayLike) -> NDArray[np.float32]:
+        """Every vertex's radiance (V, 3) through the vertex shader (one point per vertex; tests)."""
+        import moderngl
+
+        prog = self.program(probe=True)
+        self._uniforms(prog, lighting, view)
+        rows = max(1, -(-self.mesh.n_vertices // PROBE_WIDTH))
+        _set(prog, "u_output_size", (PROBE_WIDTH, rows))
+        tex = self.ctx.texture((PROBE_WIDTH, rows), 4, dtype="f4")
+        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        vao = self._vao(prog, indexed=False)
+        try:
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+            vao.render(moderngl.POINTS, vertices=self.mesh.n_vertices)
+            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(-1, 4)
+        finally:
+            vao.release()
+            fbo.release()
+            tex.release()
+        return np.asarray(raw[: self.mesh.n_vertices, :3])
+
+    def draw(self, lighting: ArrayLike, view: ArrayLike, size: int) -> NDArray[np.float32]:
+        """A (size, size, 3) float32 image (row 0 at the top) from the orthographic camera looking along -view."""
+        import moderngl
+
+        if not 1 <= size <= 4096:
+            raise InputError(f"size must be in 1..4096, got {size}")
+        v = np.asarray(view, dtype=np.float64)
+        v = v / np.linalg.norm(v)
+        prog = self.program()
+        self._uniforms(prog, lighting, v)
+        _set(prog, "u_view_projection", tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel()))
+        _set(prog, "u_model", tuple(model_matrix(self.mesh).T.ravel()))
+        color = self.ctx.texture((size, size), 4, dtype="f4")
+        depth = self.ctx.depth_renderbuffer((size, size))
+        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
+        vao = self._vao(prog, indexed=True)
+        try:
+            fbo.use()
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+            vao.render(moderngl.TRIANGLES)
+            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+        finally:
+            vao.release()
+            fbo.release()
+            color.release()
+            depth.release()
+        return np.ascontiguousarray(raw[::-1, :, :3])
