@@ -10,7 +10,8 @@ on Gauss–Legendre nodes ``mu_a`` (weights ``w_a``) has the SVD ``B_m = U S V^T
 with ``v_j(mu_b) = V[b, j] / sqrt(w_b)`` on the nodes. The radial profiles are extended off the nodes by the
 Nyström formula (exact for the discretised operator, spectrally accurate in the kernel's smoothness):
 
-    u_j(mu) = (1 / s_j) sum_b C_m(mu, mu_b) sqrt(w_b) V[b, j],   v_j(mu) = (1 / s_j) sum_a C_m(mu_a, mu) sqrt(w_a) U[a, j]
+    u_j(mu) = (1 / s_j) sum_b C_m(mu, mu_b) sqrt(w_b) V[b, j]
+    v_j(mu) = (1 / s_j) sum_a C_m(mu_a, mu) sqrt(w_a) U[a, j]
 
 with ``C_m(mu_o, mu_i) = (2 pi / n_phi) sum_l rho(mu_o, mu_i, phi_l) cos(m phi_l)`` (real: relight's isotropic kernels
 are even in phi_i - phi_o), and tabulated at ``N_TABLE`` elevations uniform in theta on [0, pi/2] (uniform in theta
