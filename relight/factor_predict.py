@@ -26,7 +26,7 @@ import numpy as np
 
 from relight.brdf.base import IsotropicBRDF, Lobe, RadialLobe
 from relight.brdf.coefficients import spectrum_for_tolerance
-from relight.brdf.lpq import lobe_cache_key, remember
+from relight.brdf.lobe_cache import lobe_cache
 from relight.brdf.measured import half_diff_to_dirs
 from relight.brdf.radial import Lobe1D, Phong
 from relight.errors import InputError
@@ -47,9 +47,9 @@ HALF_ANGLE_SLOPE: dict[float, float] = {0.9: 0.24, 0.95: 0.27, 0.99: 0.33}
 #: Grids (n_theta, n_phi) of :func:`terms_for_tolerance`'s block SVD: coarse first, fine when K > n_theta.
 COARSE_GRID = (24, 48)
 FINE_GRID = (64, 96)
-#: Results of :func:`terms_for_tolerance` by the BRDF's JSON spec (bounded like relight.brdf.lpq's caches): a
-#: plan asks about each material again for every scene.
-_TERMS_CACHE: dict[str, dict[str, Any]] = {}
+#: Results of :func:`terms_for_tolerance` by the BRDF's JSON spec (a bounded ``relight.brdf.lobe_cache``): a plan
+#: asks about each material again for every scene.
+_TERMS_CACHE = lobe_cache()
 
 
 def half_angle_slope(tau: float) -> float:
@@ -151,6 +151,15 @@ def predict_terms(
     raise InputError(f"no SVD-free prediction for {type(brdf).__name__} (anisotropic or a callable): run the SVD")
 
 
+def _spec_key(brdf: Any, *parts: Any) -> str | None:
+    import json
+
+    try:
+        return json.dumps([type(brdf).__qualname__, brdf.spec(), *parts], sort_keys=True)
+    except (AttributeError, TypeError, ValueError):
+        return None  # no JSON spec: never cached
+
+
 def terms_for_tolerance(brdf: Any, epsilon: float, *, domain: str = "hemisphere", include_cosine: bool = True) -> dict[
         str, Any]:
     """The planner's K: in-out terms capturing ``1 - epsilon`` of the BRDF's energy (the paper's 99 % is
@@ -176,7 +185,7 @@ def terms_for_tolerance(brdf: Any, epsilon: float, *, domain: str = "hemisphere"
     if isinstance(b, RadialLobe) and include_cosine and b.center in ("R", "N"):
         k = int(radial_terms(b, domain, (tau,))["terms"][tau])
         return {"terms": k, "method": f"radial-spectrum-{domain}", "seconds": time.perf_counter() - t0}
-    key = lobe_cache_key(b, "in-out terms", tau, domain, include_cosine) if hasattr(b, "spec") else None
+    key = _spec_key(b, tau, domain, include_cosine)
     if key is not None and key in _TERMS_CACHE:
         return {**_TERMS_CACHE[key], "cached": True, "seconds": time.perf_counter() - t0}
     n_t, n_p = COARSE_GRID
@@ -189,5 +198,5 @@ def terms_for_tolerance(brdf: Any, epsilon: float, *, domain: str = "hemisphere"
                       method="block", thresholds=(tau,)).terms[tau]
     out = {"terms": int(k), "method": f"block-svd-{grid[0]}x{grid[1]}", "seconds": time.perf_counter() - t0}
     if key is not None:
-        remember(_TERMS_CACHE, key, out)
+        _TERMS_CACHE[key] = out
     return out
