@@ -26,6 +26,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -302,10 +303,10 @@ def main() -> None:
             t0 = time.perf_counter()
             brdf = parse_brdf(spec)
             res = sweep(px, brdf, size=args.size, calibration=cal, epsilons=EPSILONS.get(key))
-            res.meta["input"]["path"] = f"data/envmaps/{map_name}.exr"
+            res.meta = replace(res.meta, input=replace(res.meta.input, path=f"data/envmaps/{map_name}.exr"))
             sub = f"{map_name}_{key}"
             points = [p.to_json() for p in res.points]
-            summary = case_summary(points, res.meta, brdf, cal)  # adds the full-size and cached-BRDF columns
+            summary = case_summary(points, res.meta.to_json(), brdf, cal)  # adds the full-size and cached-BRDF columns
             write_tradeoff(res, out / sub, title=f"{map_name}, {spec}")
             (out / sub / "tradeoff.json").write_text(json.dumps(jsonable(points), indent=1, allow_nan=False))
             cases.append({"map": map_name, "material": spec, "material_text": text, "dir": sub, "summary": summary})

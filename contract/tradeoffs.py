@@ -1,4 +1,5 @@
-"""Accuracy–time sweeps (``POST /tradeoffs``, ``relight.tradeoff``).
+"""Accuracy–time sweeps (``POST /tradeoffs``, ``relight.tradeoff``): the request, and the answer whose points and
+``meta`` are the core's typed reports (``relight.tradeoff.report``).
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from pydantic import Field
 
 from relight.contract.base import Digest, Fraction, JobState, Public, Strict, Vector3
 from relight.contract.resources import BrdfRef
+from relight.tradeoff.report import TradeoffMeta, TradeoffPoint
 
 
 class TradeoffCreate(Strict):
@@ -35,12 +37,13 @@ class TradeoffPublic(Public):
     brdf: Digest
     brdf_spec: dict[str, Any]
     params: dict[str, Any]
-    points: list[dict[str, Any]] | None = Field(None, description="method, orders, predicted_error, measured_error, "
-                                                "mitsuba_error (null without a Mitsuba 3 twin), image_error, "
-                                                "predicted_seconds, measured_seconds, pareto, ... per point")
-    meta: dict[str, Any] | None = Field(None, description="what the sweep ran on; mitsuba: the Mitsuba 3 "
-                                        "comparison's settings, noise floor and reference_error, or computed "
-                                        "false and the reason")
+    points: list[TradeoffPoint] | None = Field(None, description="per point: method, orders, predicted_error, "
+                                               "measured_error, mitsuba_error (null without a Mitsuba 3 twin), "
+                                               "image_error, predicted_seconds, measured_seconds, pareto, ... (the "
+                                               "core's relight.tradeoff.TradeoffPoint)")
+    meta: TradeoffMeta | None = Field(None, description="what the sweep ran on (the core's "
+                                      "relight.tradeoff.TradeoffMeta); mitsuba: the Mitsuba 3 comparison's settings, "
+                                      "noise floor and reference_error, or computed false and the reason")
     created_at: datetime
     finished_at: datetime | None = None
     links: dict[str, str] = {}

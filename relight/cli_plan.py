@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -73,19 +74,19 @@ def cmd_tradeoff(args: argparse.Namespace) -> int:
     if trunc is not None:
         kwargs["truncations"] = trunc
     res = sweep(px, brdf, epsilons=eps, size=args.size, mitsuba=MITSUBA_MODES[args.mitsuba], **kwargs)
-    res.meta["input"].update({"path": str(args.envmap), "original_height": h_in})
+    res.meta = replace(res.meta, input=replace(res.meta.input, path=str(args.envmap), original_height=h_in))
     paths = write_tradeoff(res, args.out, title=args.title)
-    lo, hi = res.meta["time_ratio_range"] or (math.nan, math.nan)
+    lo, hi = res.meta.time_ratio_range or (math.nan, math.nan)
     front = [p for p in res.points if p.pareto_overall]
     print(f"wrote {', '.join(sorted(p.name for p in paths.values()))} to {args.out}: {len(res.points)} points "
-          f"({px.shape[0]} x {px.shape[1]} input, {res.meta['output']['height']} x {res.meta['output']['width']} "
+          f"({px.shape[0]} x {px.shape[1]} input, {res.meta.output.height} x {res.meta.output.width} "
           f"output), {len(front)} on the overall Pareto front; predicted/measured time {lo:.2f}..{hi:.2f}")
-    mits = res.meta["mitsuba"]
-    if mits["computed"]:
-        print(f"against Mitsuba 3 ({mits['variant']}, {mits['spp']} spp, {mits['seconds']:.1f} s): noise floor "
-              f"{mits['noise']:.2g}, angular reference {mits['reference_error']:.2g}")
+    mits = res.meta.mitsuba
+    if mits.computed:
+        print(f"against Mitsuba 3 ({mits.variant}, {mits.spp} spp, {mits.seconds or 0.0:.1f} s): noise floor "
+              f"{mits.noise or 0.0:.2g}, angular reference {mits.reference_error or 0.0:.2g}")
     else:
-        print(f"not measured against Mitsuba 3: {mits['reason']}")
+        print(f"not measured against Mitsuba 3: {mits.reason}")
     return 0
 
 

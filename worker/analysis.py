@@ -66,8 +66,9 @@ def compute_tradeoff(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
         kwargs["view"] = params["view"]
     res = sweep(px, brdf, epsilons=params.get("epsilons"), size=params.get("size"), **kwargs)
     ctx.report("storing", 0.95)
-    res.meta["input"]["envmap"] = job["envmap"]
-    out: dict[str, Any] = _jsonable({"points": [p.to_json() for p in res.points], "meta": from_core(res.meta, store)})
+    res.meta = dataclasses.replace(res.meta, input=dataclasses.replace(res.meta.input, envmap=job["envmap"]))
+    out: dict[str, Any] = _jsonable({"points": [p.to_json() for p in res.points],
+                                     "meta": from_core(res.meta.to_json(), store)})
     return out
 
 

@@ -35,7 +35,8 @@ angular reference's image instead of Mitsuba's, so that it can be compared with 
 the sphere-wide ``measured_error`` is not comparable with either: it also counts grazing views, where an SHRM's
 error is largest.
 
-``meta["mitsuba"]`` records the settings, the render's seconds (not part of any point's), and two floors:
+``meta.mitsuba`` (:class:`~relight.tradeoff.report.MitsubaComparison`) records the settings, the render's seconds
+(not part of any point's), and two floors:
 
 * ``noise``: the relative RMS of the blocks' Monte Carlo standard deviations (estimated by Mitsuba's ``moment``
   integrator from the render's own samples): the expected ``mitsuba_error`` of a perfect map. It is 1.5–5.5e-3 on
@@ -51,7 +52,7 @@ error is largest.
   With S equal to the input rows it is at the noise level (``tests/relight/test_tradeoff_mitsuba.py``); at a
   coarser grid the interpolation shows (2.6 % for Beckmann alpha = 0.2 on the studio map at 32 rows and S = 16).
 
-Otherwise ``meta["mitsuba"]`` is ``{"computed": False, "reason": ...}`` (no twin, Mitsuba not installed, an odd
+Otherwise ``meta.mitsuba`` has ``computed`` False and a ``reason`` (no twin, Mitsuba not installed, an odd
 map height, a failed render, or ``mitsuba=False``) and the points carry ``mitsuba_error`` and ``image_error`` None.
 
 :func:`window_tradeoff` reports what optional windowing (``prefilter_radial(window=...)``) costs in accuracy and
@@ -77,9 +78,12 @@ if TYPE_CHECKING:
     from relight.tradeoff.points import (
         QUICK_SECONDS,
         REPEAT,
-        TradeoffPoint,
         is_reflection_map,
         pareto_flags,
+    )
+    from relight.tradeoff.report import (
+        TradeoffMeta,
+        TradeoffPoint,
     )
     from relight.tradeoff.sweeps import (
         DEFAULT_EPSILONS,
@@ -107,7 +111,8 @@ _EXPORTS: dict[str, str] = {
     "QUICK_SECONDS": "points",
     "REPEAT": "points",
     "Tradeoff": "sweeps",
-    "TradeoffPoint": "points",
+    "TradeoffMeta": "report",
+    "TradeoffPoint": "report",
     "default_size": "sweeps",
     "is_reflection_map": "points",
     "pareto_flags": "points",
@@ -127,6 +132,7 @@ __all__ = [
     "QUICK_SECONDS",
     "REPEAT",
     "Tradeoff",
+    "TradeoffMeta",
     "TradeoffPoint",
     "default_size",
     "is_reflection_map",

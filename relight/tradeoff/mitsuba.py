@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from relight.errors import InputError, RelightError
 from relight.mitsuba_twin import TwinSettings
 from relight.tradeoff.points import is_reflection_map
+from relight.tradeoff.report import Grid, MitsubaComparison
 
 FloatArray = NDArray[np.float64]
 
@@ -45,7 +46,7 @@ def mitsuba_plan(brdf: Any, px: FloatArray, mitsuba: bool | None) -> tuple[dict[
 def mitsuba_errors(
     px: FloatArray, brdf: Any, bsdf: dict[str, Any], view: FloatArray, ref: FloatArray, maps: list[FloatArray],
     settings: TwinSettings,
-) -> tuple[list[tuple[float, float]], dict[str, Any]]:
+) -> tuple[list[tuple[float, float]], MitsubaComparison]:
     """Each map's relative RMS against Mitsuba's sphere image (one render) and against the reference's, and the meta
     entry (module docstring)."""
     from relight import mitsuba_twin
@@ -59,28 +60,28 @@ def mitsuba_errors(
     for m in maps:
         y = cmp.blocks(m, center)
         errors.append((mitsuba_twin.block_rms(y, cmp.truth), mitsuba_twin.block_rms(y, ref_blocks)))
-    meta = {
-        "computed": True,
-        "variant": cmp.render.variant,
-        "bsdf": bsdf,
-        "view": [float(x) for x in view],
-        "image": {"height": settings.size, "width": settings.size},
-        "spp": settings.spp,
-        "seed": settings.seed,
-        "block": settings.block,
-        "radius": settings.radius,
-        "max_angle_nv_deg": math.degrees(math.asin(settings.radius)),
-        "blocks": int(cmp.truth.size),
-        "supersample": settings.supersample,
-        "texels_per_pixel": cmp.texels,
-        "map_center": center,
-        "seconds": render_seconds,
-        "noise": cmp.noise,
-        "reference_error": mitsuba_twin.block_rms(ref_blocks, cmp.truth),
-        "metric": (f"relative RMS over the {cmp.truth.size} blocks of {settings.block} x {settings.block} pixels lying "
-                   f"within image radius {settings.radius:g} of a {settings.size} x {settings.size} orthographic "
-                   "sphere image, Rec. 709 luminance; relight's map looked up bilinearly at its centre direction, "
-                   f"{settings.supersample} x {settings.supersample} samples per pixel"),
-    }
+    meta = MitsubaComparison(
+        computed=True,
+        variant=cmp.render.variant,
+        bsdf=bsdf,
+        view=(float(view[0]), float(view[1]), float(view[2])),
+        image=Grid(height=settings.size, width=settings.size),
+        spp=settings.spp,
+        seed=settings.seed,
+        block=settings.block,
+        radius=settings.radius,
+        max_angle_nv_deg=math.degrees(math.asin(settings.radius)),
+        blocks=int(cmp.truth.size),
+        supersample=settings.supersample,
+        texels_per_pixel=cmp.texels,
+        map_center=center,
+        seconds=render_seconds,
+        noise=cmp.noise,
+        reference_error=mitsuba_twin.block_rms(ref_blocks, cmp.truth),
+        metric=(f"relative RMS over the {cmp.truth.size} blocks of {settings.block} x {settings.block} pixels lying "
+                f"within image radius {settings.radius:g} of a {settings.size} x {settings.size} orthographic "
+                "sphere image, Rec. 709 luminance; relight's map looked up bilinearly at its centre direction, "
+                f"{settings.supersample} x {settings.supersample} samples per pixel"),
+    )
     return errors, meta
 

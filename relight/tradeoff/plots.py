@@ -22,7 +22,7 @@ def write_tradeoff(result: Tradeoff, out_dir: str | Path, *, title: str | None =
     paths = {"tradeoff.json": out / "tradeoff.json", "tradeoff_meta.json": out / "tradeoff_meta.json"}
     points = [p.to_json() for p in result.points]
     paths["tradeoff.json"].write_text(json.dumps(jsonable(points), indent=1, allow_nan=False))
-    paths["tradeoff_meta.json"].write_text(json.dumps(jsonable(result.meta), indent=1, allow_nan=False))
+    paths["tradeoff_meta.json"].write_text(json.dumps(jsonable(result.meta.to_json()), indent=1, allow_nan=False))
     paths.update(plot(result, out, title=title))
     return paths
 
@@ -32,7 +32,7 @@ _STYLE = {"frequency": ("tab:blue", "o"), "angular": ("tab:orange", "s")}
 
 def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> dict[str, Path]:
     """PNG plots (matplotlib, Agg): error vs time with both Pareto fronts, predicted vs measured error, predicted
-    vs measured time. When the sweep measured against Mitsuba 3 (``meta["mitsuba"]["computed"]``), the frequency
+    vs measured time. When the sweep measured against Mitsuba 3 (``meta.mitsuba.computed``), the frequency
     points' ``mitsuba_error`` appear as hollow markers of the same colour in the first two, with the noise floor
     (dotted) and the reference's own error against Mitsuba (dash-dotted) in the first."""
     try:
@@ -43,7 +43,8 @@ def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> 
     import matplotlib.pyplot as plt
 
     out = Path(out_dir)
-    name = title or str((result.meta.get("brdf") or {}).get("kind", "tradeoff"))
+    brdf = result.meta.brdf
+    name = title or str(brdf.get("kind", "tradeoff") if isinstance(brdf, dict) else "tradeoff")
     paths: dict[str, Path] = {}
     pts: list[dict[str, Any]] = [p.to_json() for p in result.points]
 
@@ -63,16 +64,16 @@ def plot(result: Tradeoff, out_dir: str | Path, *, title: str | None = None) -> 
                    if method == "frequency" else f"t={p['setting']['truncation']:g}")
             ax.annotate(lab, (p["measured_seconds"], max(p["measured_error"], 1e-12)), fontsize=6,
                         xytext=(3, 3), textcoords="offset points")
-    mits = result.meta.get("mitsuba") or {}
-    if mits.get("computed"):
+    mits = result.meta.mitsuba
+    if mits.computed and mits.noise is not None and mits.reference_error is not None:
         colour, marker = _STYLE["frequency"]
         mp = [p for p in pts if p["method"] == "frequency" and p.get("mitsuba_error") is not None]
         if mp:
             ax.scatter([p["measured_seconds"] for p in mp], [max(float(p["mitsuba_error"]), 1e-12) for p in mp],
                        facecolors="none", edgecolors=colour, marker=marker, label="frequency vs Mitsuba 3", zorder=3)
-        ax.axhline(max(float(mits["noise"]), 1e-12), color="0.35", ls=":", lw=1.0,
+        ax.axhline(max(mits.noise, 1e-12), color="0.35", ls=":", lw=1.0,
                    label="Mitsuba 3 noise floor")
-        ax.axhline(max(float(mits["reference_error"]), 1e-12), color="0.35", ls="-.", lw=0.8,
+        ax.axhline(max(mits.reference_error, 1e-12), color="0.35", ls="-.", lw=0.8,
                    label="angular reference vs Mitsuba 3")
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -16,34 +15,9 @@ from numpy.typing import NDArray
 from relight import costmodel
 from relight.brdf.base import RadialLobe
 from relight.metrics import relative_rms
-from relight.reports import Report
+from relight.tradeoff.report import TradeoffPoint
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(kw_only=True)
-class TradeoffPoint(Report):
-    """One point (``relight.tradeoff`` module docstring): the method and its setting (``epsilon`` or
-    ``truncation``), the orders it ran at (frequency: F_B, P_B, F_rho, F_L, F_proj and per-lobe ``components`` for
-    SHRMs; angular: truncation, theta*, App. D's W and the share of pairs visited), predicted and measured error and
-    seconds (per stage too), the errors against Mitsuba 3's and the reference's sphere images (None without a twin),
-    and whether it is on its method's and on the overall Pareto front (set once every point is measured)."""
-
-    method: str
-    representation: str
-    setting: dict[str, float]
-    orders: dict[str, Any]
-    predicted_error: float | None
-    predicted_error_bound: float | None
-    measured_error: float
-    predicted_seconds: float
-    measured_seconds: float
-    predicted_stages: dict[str, float]
-    measured_stages: dict[str, float]
-    mitsuba_error: float | None = None
-    image_error: float | None = None
-    pareto: bool = False
-    pareto_overall: bool = False
 
 
 def is_reflection_map(brdf: Any) -> bool:

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -17,7 +17,6 @@ from relight.errors import InputError, RelightError
 from relight.mitsuba_twin import TwinSettings
 from relight.tradeoff.mitsuba import mitsuba_errors, mitsuba_plan
 from relight.tradeoff.points import (
-    TradeoffPoint,
     angular_point,
     check_pixels,
     finite_or_none,
@@ -27,6 +26,15 @@ from relight.tradeoff.points import (
     pareto_flags,
     timed,
     warm_up,
+)
+from relight.tradeoff.report import (
+    Grid,
+    MitsubaComparison,
+    SweepCalibration,
+    SweepInput,
+    SweepReference,
+    TradeoffMeta,
+    TradeoffPoint,
 )
 
 FloatArray = NDArray[np.float64]
@@ -49,11 +57,11 @@ class Tradeoff:
     """The points of a sweep and what they were measured on (:func:`sweep`)."""
 
     points: list[TradeoffPoint]
-    meta: dict[str, Any] = field(default_factory=dict)
+    meta: TradeoffMeta
 
     def as_dict(self) -> dict[str, Any]:
         """``{"points": [...], "meta": {...}}`` as JSON types (the worker's stored result)."""
-        return {"points": [p.to_json() for p in self.points], "meta": self.meta}
+        return {"points": [p.to_json() for p in self.points], "meta": self.meta.to_json()}
 
 
 def default_size(height: int) -> int:
@@ -148,7 +156,7 @@ def sweep(
 
     # after every timed point: the render is not part of any point's seconds
     errors: list[tuple[float, float]] = []
-    mitsuba_meta: dict[str, Any] = {"computed": False, "reason": no_twin}
+    mitsuba_meta = MitsubaComparison(computed=False, reason=no_twin)
     if twin_bsdf is not None and camera is not None:
         report("mitsuba", done / n_total)
         try:
@@ -157,7 +165,7 @@ def sweep(
         except (RelightError, RuntimeError) as exc:  # Mitsuba's own errors are RuntimeErrors
             if mitsuba:
                 raise
-            mitsuba_meta = {"computed": False, "reason": f"the Mitsuba 3 render failed: {exc}"}
+            mitsuba_meta = MitsubaComparison(computed=False, reason=f"the Mitsuba 3 render failed: {exc}")
     for i, p in enumerate(points):
         p.mitsuba_error = finite_or_none(errors[i][0]) if errors else None
         p.image_error = finite_or_none(errors[i][1]) if errors else None
@@ -173,20 +181,20 @@ def sweep(
 
     ratios = [p.predicted_seconds / p.measured_seconds for p in points if p.measured_seconds > 0]
     spec = brdf.spec() if hasattr(brdf, "spec") else None
-    meta = {
-        "relight_version": __version__,
-        "brdf": spec,
-        "representation": "reflection_map" if radial else "shrm",
-        "input": {"height": h, "width": 2 * h},
-        "output": {"height": s, "width": 2 * s},
-        "view": None if v is None else [float(x) for x in v],
-        "metric": "relative RMS error over the sphere, solid-angle weighted, Rec. 709 luminance (relight.metrics)",
-        "reference": {"method": "angular", "truncation": 0.0, "seconds": t_ref},
-        "calibration": {"key": cal.key, "calibrated": cal.calibrated, "created": cal.created,
-                        "constants": dict(cal.constants)},
-        "time_ratio_range": [min(ratios), max(ratios)] if ratios else None,
-        "mitsuba": mitsuba_meta,
-    }
+    meta = TradeoffMeta(
+        relight_version=__version__,
+        brdf=spec,
+        representation="reflection_map" if radial else "shrm",
+        input=SweepInput(height=h, width=2 * h),
+        output=Grid(height=s, width=2 * s),
+        view=None if v is None else (float(v[0]), float(v[1]), float(v[2])),
+        metric="relative RMS error over the sphere, solid-angle weighted, Rec. 709 luminance (relight.metrics)",
+        reference=SweepReference(method="angular", truncation=0.0, seconds=t_ref),
+        calibration=SweepCalibration(key=cal.key, calibrated=cal.calibrated, created=cal.created,
+                                     constants=dict(cal.constants)),
+        time_ratio_range=(min(ratios), max(ratios)) if ratios else None,
+        mitsuba=mitsuba_meta,
+    )
     report("done", 1.0)
     return Tradeoff(points=points, meta=meta)
 

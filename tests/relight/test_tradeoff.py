@@ -62,8 +62,9 @@ def test_radial_sweep_points_and_errors() -> None:
     # the Pareto front of each method is non-empty and no front point is dominated within its method
     for method in ("frequency", "angular"):
         assert any(p.pareto for p in res.points if p.method == method)
-    assert res.meta["reference"]["truncation"] == 0.0 and res.meta["view"] is None
-    lo, hi = res.meta["time_ratio_range"]
+    assert res.meta.reference.truncation == 0.0 and res.meta.view is None
+    assert res.meta.time_ratio_range is not None
+    lo, hi = res.meta.time_ratio_range
     assert 0 < lo <= hi
 
 
@@ -88,8 +89,8 @@ def test_view_dependent_sweep() -> None:
     res = tradeoff.sweep(env("sunset", 32), Microfacet(0.4), epsilons=(0.3, 0.1), truncations=(0.1,), size=8,
                          view=view, calibration=CAL)
     freq = [p for p in res.points if p.method == "frequency"]
-    assert res.meta["representation"] == "shrm"
-    assert np.allclose(res.meta["view"], np.array(view) / np.linalg.norm(view))
+    assert res.meta.representation == "shrm" and res.meta.view is not None
+    assert np.allclose(res.meta.view, np.array(view) / np.linalg.norm(view))
     assert freq[1].orders["P_B"] >= freq[0].orders["P_B"] and freq[1].orders["F_B"] > freq[0].orders["F_B"]
     assert freq[1].measured_error < freq[0].measured_error
     assert "view" in freq[0].measured_stages and "angular_view" in res.points[-1].measured_stages

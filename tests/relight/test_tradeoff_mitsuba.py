@@ -49,6 +49,7 @@ from relight.mitsuba_twin import (
 )
 from relight.reference_view import reference_view
 from relight.shrm import create_shrm, reflect, render_sphere
+from relight.tradeoff.report import Grid
 
 DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 CAL = costmodel.default_calibration()
@@ -216,17 +217,18 @@ def test_sweep_records_mitsuba_errors() -> None:
     ``measured_error`` is not comparable with either: it includes grazing views (excluded here, radius 0.8), where
     the SHRM's error is largest (0.20 and 0.05 here)."""
     res = small_sweep()
-    m = res.meta["mitsuba"]
-    print("\nmitsuba meta:", {k: v for k, v in m.items() if k not in ("metric", "bsdf")})
+    m = res.meta.mitsuba
+    print("\nmitsuba meta:", {k: v for k, v in m.to_json().items() if k not in ("metric", "bsdf")})
     for p in res.points:
         print(f"{p.method} {p.setting}: measured {p.measured_error:.4g}, image {p.image_error:.4g}, "
               f"mitsuba {p.mitsuba_error:.4g}, predicted {p.predicted_error:.3g}")
-    assert m["computed"] is True and m["variant"] in VARIANTS
-    assert m["bsdf"] == twin(beckmann()) and m["spp"] == SETTINGS.spp and m["blocks"] == 24
-    assert m["image"] == {"height": 32, "width": 32} and m["block"] == 4 and m["radius"] == 0.8
-    assert m["map_center"] == "R" and np.allclose(m["view"], VIEW / np.linalg.norm(VIEW))
-    assert m["seconds"] > 0
-    noise, ref_err = m["noise"], m["reference_error"]
+    assert m.computed is True and m.variant in VARIANTS
+    assert m.bsdf == twin(beckmann()) and m.spp == SETTINGS.spp and m.blocks == 24
+    assert m.image == Grid(height=32, width=32) and m.block == 4 and m.radius == 0.8
+    assert m.map_center == "R" and m.view is not None and np.allclose(m.view, VIEW / np.linalg.norm(VIEW))
+    assert m.seconds is not None and m.seconds > 0
+    noise, ref_err = m.noise, m.reference_error
+    assert noise is not None and ref_err is not None
     assert 0 < noise < 0.01
     assert ref_err <= 3 * noise + SYSTEMATIC, m
     json.dumps(res.as_dict(), allow_nan=False)
@@ -271,8 +273,9 @@ def _tiny_sweep(brdf: Any, px: np.ndarray | None = None, **kwargs: Any) -> trade
 def test_no_twin_records_why() -> None:
     """Phong has no Mitsuba 3 plugin: nothing rendered, the reason recorded, every point's errors None."""
     res = _tiny_sweep(Phong(16.0))
-    assert res.meta["mitsuba"] == {"computed": False, "reason": res.meta["mitsuba"]["reason"]}
-    assert "phong" in res.meta["mitsuba"]["reason"] and "twin" in res.meta["mitsuba"]["reason"]
+    why = res.meta.mitsuba.reason
+    assert res.meta.mitsuba.to_json() == {"computed": False, "reason": why}
+    assert why is not None and "phong" in why and "twin" in why
     assert all(p.mitsuba_error is None and p.image_error is None for p in res.points)
     with pytest.raises(InputError, match="no Mitsuba 3 twin"):
         _tiny_sweep(Phong(16.0), mitsuba=True)
@@ -280,7 +283,7 @@ def test_no_twin_records_why() -> None:
 
 def test_switched_off() -> None:
     res = _tiny_sweep(beckmann(), mitsuba=False)
-    assert res.meta["mitsuba"]["computed"] is False and "switched off" in res.meta["mitsuba"]["reason"]
+    assert res.meta.mitsuba.computed is False and "switched off" in str(res.meta.mitsuba.reason)
     assert all(p.mitsuba_error is None for p in res.points)
 
 
@@ -289,7 +292,7 @@ def test_map_mitsuba_cannot_show_exactly() -> None:
     skipped with the reason in auto mode and refused with ``mitsuba=True``."""
     px = np.asarray(resample_latlong(studio(16), 10), dtype=np.float64)[:9, :18]
     res = _tiny_sweep(beckmann(), px)
-    assert res.meta["mitsuba"]["computed"] is False and "H even" in res.meta["mitsuba"]["reason"]
+    assert res.meta.mitsuba.computed is False and "H even" in str(res.meta.mitsuba.reason)
     with pytest.raises(InputError, match="H even"):
         _tiny_sweep(beckmann(), px, mitsuba=True)
 
