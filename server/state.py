@@ -37,7 +37,8 @@ PRELOAD_SUFFIXES = (".exr", ".hdr", ".png", ".jpg", ".jpeg")
 #: Modules that only register job kinds (no service of their own): imported at start-up, before recovery. The
 #: kinds with a service (shrm, tradeoff, scene) register when their service's module is imported above.
 KIND_MODULES: tuple[str, ...] = ("relight.server.services.sh_tables", "relight.server.services.gaussian",
-                                 "relight.server.services.ibl", "relight.server.services.factorizations")
+                                 "relight.server.services.ibl", "relight.server.services.factorizations",
+                                 "relight.server.services.inout")
 
 
 @dataclass

@@ -57,22 +57,27 @@ class InOutRenderer:
         self.factor_tex = self.ctx.texture((ft.shape[1], ft.shape[0]), 1, ft.tobytes(), dtype="f4")
         for tx in (self.transport, self.factor_tex):
             tx.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
-        self._progs: dict[bool, Any] = {}
+        self._progs: dict[tuple[bool, int], Any] = {}
 
     def release(self) -> None:
         for obj in (self.vbo, self.ibo, self.transport, self.factor_tex, *self._progs.values()):
             obj.release()
 
-    def program(self, probe: bool = False) -> Any:
-        if probe not in self._progs:
-            defs: dict[str, object] = {"INOUT_ORDER": self.order, "INOUT_TERMS": self.factors.terms,
-                                       "OUTPUT_LINEAR": None}
+    def program(self, probe: bool = False, terms: int | None = None) -> Any:
+        """The program summing the first ``terms`` stored terms (all by default; whole pairs are the caller's)."""
+        k = self.factors.terms if terms is None else int(terms)
+        if not 1 <= k <= self.factors.terms:
+            raise InputError(f"terms must lie in 1..{self.factors.terms}, got {terms}")
+        key = (probe, k)
+        if key not in self._progs:
+            defs: dict[str, object] = {"INOUT_ORDER": self.order, "INOUT_TERMS": k,
+                                       "INOUT_STORED": self.factors.terms, "OUTPUT_LINEAR": None}
             if probe:
                 defs["PROBE"] = None
-            self._progs[probe] = self.ctx.program(
+            self._progs[key] = self.ctx.program(
                 vertex_shader=shaders.build("inout.vert.glsl", defines=defs),
                 fragment_shader=shaders.build("sh_table.frag.glsl", defines={"OUTPUT_LINEAR": None}))
-        return self._progs[probe]
+        return self._progs[key]
 
     def _uniforms(self, prog: Any, lighting: ArrayLike, view: ArrayLike) -> None:
         light = np.asarray(lighting, dtype=np.float64)
@@ -96,11 +101,12 @@ class InOutRenderer:
             return self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
         return self.ctx.vertex_array(prog, content)
 
-    def probe(self, lighting: ArrayLike, view: ArrayLike) -> NDArray[np.float32]:
-        """Every vertex's radiance (V, 3) through the vertex shader (one point per vertex; tests)."""
+    def probe(self, lighting: ArrayLike, view: ArrayLike, terms: int | None = None) -> NDArray[np.float32]:
+        """Every vertex's radiance (V, 3) through the vertex shader, summing the first ``terms`` terms (one point
+        per vertex; tests)."""
         import moderngl
 
-        prog = self.program(probe=True)
+        prog = self.program(probe=True, terms=terms)
         self._uniforms(prog, lighting, view)
         rows = max(1, -(-self.mesh.n_vertices // PROBE_WIDTH))
         _set(prog, "u_output_size", (PROBE_WIDTH, rows))

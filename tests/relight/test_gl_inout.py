@@ -60,6 +60,12 @@ def test_gpu_vertices_match_the_cpu(ctx: Any, bunny: dict[str, Any]) -> None:
                       np.abs(np.einsum("pkj,jc->pkc", r.uploaded, light)))
     assert np.abs(cpu).max() > 0.1 and (cpu == 0).any()  # lit, and back-facing vertices are 0
     assert np.all(np.abs(gpu - cpu) <= 3e-4 * scale + 1e-6), float(np.abs(gpu - cpu).max())
+    # the viewer's K slider: fewer terms summed from the same texture (stride of all stored terms)
+    short = f.truncated(8)
+    gpu8 = r.probe(light, VIEW, terms=short.terms)
+    cpu8 = shade(short, r.uploaded[:, : short.terms], light, frames, VIEW)
+    assert np.abs(cpu8 - cpu).max() > 0.01 * np.abs(cpu).max()  # truncation changes the result ...
+    assert np.all(np.abs(gpu8 - cpu8) <= 3e-4 * scale + 1e-6)  # ... and the GPU follows it
     r.release()
 
 

@@ -17,6 +17,11 @@
 #include "common.glsl"
 
 #define INOUT_COUNT ((INOUT_ORDER + 1) * (INOUT_ORDER + 1))
+// INOUT_STORED: the terms each vertex stores (the texel stride); INOUT_TERMS <= INOUT_STORED are summed, so the
+// viewer's K slider truncates without new data (whole pairs: relight/inout_factors.py).
+#ifndef INOUT_STORED
+#define INOUT_STORED INOUT_TERMS
+#endif
 
 in vec3 a_position;
 in vec3 a_normal;
@@ -46,10 +51,10 @@ void main() {
             q[k] = vec3(0.0);
         }
         const int total = INOUT_TERMS * INOUT_COUNT;
-        const int texels = (total + 3) / 4;
+        const int stride = (INOUT_STORED * INOUT_COUNT + 3) / 4;
         int w = textureSize(u_transport, 0).x;
-        for (int i = 0; i < texels; ++i) {
-            int tx = gl_VertexID * texels + i;
+        for (int i = 0; i < (total + 3) / 4; ++i) {
+            int tx = gl_VertexID * stride + i;
             vec4 texel = texelFetch(u_transport, ivec2(tx % w, tx / w), 0);
             for (int c = 0; c < 4; ++c) {
                 int idx = 4 * i + c;
