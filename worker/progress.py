@@ -16,12 +16,18 @@ while its task ran never returns a result.
 
 Cancellation: when the server cancels a job it releases the Dask future; the worker then marks the running
 task ``cancelled``. :meth:`Reporter.check_cancelled` looks at that state between stages and raises
-:class:`JobCancelled`, so a cancelled job stops at the next stage boundary instead of running to the end.
+:class:`JobCancelled`, so a cancelled job stops at the next stage boundary instead of running to the end. Long
+computations have no stage boundaries (an order search, an SHRM synthesis: minutes with none), so while a task runs
+a :class:`CancelWatch` thread looks at the state every :data:`CANCEL_POLL_S` and raises :class:`JobCancelled`
+inside the computing thread: the job stops at its next Python bytecode, after the C call in progress (one SH
+transform or BLAS call) returns.
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -32,6 +38,8 @@ from relight.worker.blobs import BlobStore
 TOPIC: Final = "relight-progress"
 #: Seconds between progress reports of the (test-only) artificial delay loop.
 DELAY_STEP_S: Final = 0.05
+#: Seconds between a :class:`CancelWatch`'s looks at its task's state (a cancelled job stops this much later).
+CANCEL_POLL_S: Final = 0.2
 
 
 class JobCancelled(Exception):
@@ -106,6 +114,56 @@ class Reporter:
             raise JobCancelled(f"job {self.job_id} was cancelled")
 
 
+class CancelWatch:
+    """``with CancelWatch(report): compute()`` — raise :class:`JobCancelled` inside the computing thread once the
+    Dask task is cancelled (module docstring). Outside a worker it does nothing.
+
+    The exception is delivered with ``PyThreadState_SetAsyncExc`` only while the block runs: leaving it disarms the
+    watch under its lock and withdraws an exception not yet raised, so nothing outside the block (Dask's own code)
+    can ever be interrupted.
+    """
+
+    def __init__(self, report: Reporter) -> None:
+        self.report = report
+        self.fired = False
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._armed = False
+        self._target = 0
+        self._thread: threading.Thread | None = None
+
+    def __enter__(self) -> CancelWatch:
+        if self.report._worker is None or self.report._key is None:
+            return self
+        self._target = threading.get_ident()
+        self._armed = True
+        self._thread = threading.Thread(target=self._run, name=f"relight-cancel-{self.report.job_id[:12]}",
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        while not self._stop.wait(CANCEL_POLL_S):
+            try:
+                self.report.check_cancelled()
+            except JobCancelled:
+                with self._lock:
+                    if self._armed:
+                        ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(self._target),
+                                                                   ctypes.py_object(JobCancelled))
+                        self.fired = True
+                return
+
+    def __exit__(self, *exc: object) -> None:
+        with self._lock:
+            self._armed = False
+            if self.fired:  # withdraw it if it is still pending (the block ended just as the job was cancelled)
+                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(self._target), None)
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+
+
 @dataclass(frozen=True)
 class JobContext:
     """What a job's task function gets besides its request: the job's id, the blob store, the progress reporter
@@ -141,7 +199,11 @@ def run_job(task: Task, store_root: str, job: dict[str, Any]) -> dict[str, Any]:
     report.started()
     artificial_delay(float(job.get("test_delay_s") or 0.0), report)
     ctx = JobContext(str(job["job_id"]), BlobStore(store_root), report, job.get("max_pixels"))
-    result = task(ctx, job["request"])
+    try:
+        with CancelWatch(report):
+            result = task(ctx, job["request"])
+    except JobCancelled as exc:
+        raise JobCancelled(str(exc) or f"job {report.job_id} was cancelled while computing") from None
     report.check_cancelled()
     report("done", 1.0)
     return result

@@ -25,6 +25,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
+from relight.worker import faults
 from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
 
 MANIFEST_FORMAT: Final = "relight.shrm-result"
@@ -162,6 +163,7 @@ def write_result(
         **description,
     }
     manifest_digest = store.put_bytes(canonical_json(manifest))
+    faults.pause("blobs_written", job_id)  # TEST ONLY: off unless RELIGHT_TEST_FAULT_DIR is set
     store.set_ref(job_ref(job_id), manifest_digest)
     return manifest_digest, manifest
 

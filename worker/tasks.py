@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from relight.errors import InputError
 from relight.jsonable import jsonable as _jsonable
 from relight.planning.job import uses_reflection_map  # the dispatch rule lives with the planner
+from relight.worker import faults
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import JobContext, Reporter
 from relight.worker.results import Layer, existing_result, load_manifest, strip_volatile, write_result
@@ -167,6 +168,7 @@ def compute_shrm(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
     else:
         layers, representation, core_report, attributes = _general(pixels, lobe, params, report)
     compute_seconds = time.perf_counter() - t_compute
+    faults.pause("compute", job_id, report.check_cancelled)  # TEST ONLY: off unless RELIGHT_TEST_FAULT_DIR is set
     report.check_cancelled()
     check_finite(layers)
     import relight

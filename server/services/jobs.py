@@ -39,6 +39,7 @@ from relight.server.services.job_table import ACTIVE, JobTable
 from relight.server.services.kinds import JobKind, kind_of
 from relight.server.services.metrics import Metrics
 from relight.server.services.runner import failure_of, run_with_resubmits
+from relight.worker import faults
 from relight.worker.blobs import BlobStore
 from relight.worker.progress import run_job
 
@@ -173,6 +174,7 @@ class JobService(JobTable):
                 del self._watchers[job_id]
 
     async def _succeed(self, job_id: str, submission: int, result: dict[str, Any]) -> None:
+        await faults.apause("before_commit", job_id)  # TEST ONLY: off unless RELIGHT_TEST_FAULT_DIR is set
         row = await self.store_success(job_id, submission, result)
         if row is None:
             return
