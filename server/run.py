@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import asyncio
 import socket
 import sys
+from types import FrameType
+from typing import Any
 
 import uvicorn
 from fastapi import FastAPI
@@ -11,6 +14,21 @@ from fastapi import FastAPI
 from relight.server.config import Settings
 from relight.server.limits import BoundedHttpToolsProtocol
 from relight.server.main import create_app
+
+
+class RelightServer(uvicorn.Server):
+    """uvicorn's server that also ends every open event stream when asked to stop (SIGTERM, SIGINT): a stream
+    would otherwise hold the graceful shutdown for its whole timeout and then be cancelled with a traceback
+    (:meth:`relight.server.services.events.EventHub.close`)."""
+
+    def __init__(self, config: uvicorn.Config) -> None:
+        super().__init__(config)
+        self.on_exit: list[Any] = []  # (loop, callback) pairs registered once the app has started
+
+    def handle_exit(self, sig: int, frame: FrameType | None) -> None:
+        super().handle_exit(sig, frame)
+        for loop, callback in self.on_exit:
+            loop.call_soon_threadsafe(callback)  # a signal handler runs between bytecodes: hand it to the loop
 
 
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None:
@@ -24,6 +42,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None
 
     def ready(app: FastAPI) -> None:
         services = app.state.services
+        server.on_exit.append((asyncio.get_running_loop(), services.hub.close))
         print(f"relight: serving {url} (data {settings.data_dir.resolve()}, Dask {services.cluster.address})",
               flush=True)
 
@@ -31,7 +50,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None
     config = uvicorn.Config(app, log_level=settings.log_level.lower() if settings.log_level else "info",
                             access_log=False, lifespan="on", timeout_graceful_shutdown=5,
                             http=BoundedHttpToolsProtocol)
-    server = uvicorn.Server(config)
+    server = RelightServer(config)
     try:
         server.run(sockets=[sock])
     finally:

@@ -23,7 +23,7 @@ from relight.server.config import Settings
 from relight.server.db import Job
 from relight.server.services.base import aware, utc
 from relight.server.services.envmaps import EnvmapService
-from relight.server.services.events import EventHub
+from relight.server.services.events import CLOSED, EventHub
 from relight.server.services.job_table import ACTIVE, JobTable
 from relight.server.services.kinds import links_of
 from relight.server.services.metrics import Metrics
@@ -177,7 +177,10 @@ class JobFeed:
                 yield "end", current
                 return
             while True:
-                pub = JobPublic.model_validate(await q.get())
+                payload = await q.get()
+                if payload is CLOSED:  # the server is stopping: the stream ends without an "end" event
+                    return
+                pub = JobPublic.model_validate(payload)
                 yield "job", pub
                 if pub.state.terminal:
                     yield "end", pub

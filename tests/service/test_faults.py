@@ -9,6 +9,7 @@ no partial file in ``blobs/tmp``.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -292,3 +293,60 @@ def test_scheduler_killed_at(point: str, external: dict[str, object], data_tmp: 
             procs[f"worker{i}"] = start_worker(i)
         finished_once(c, data, job.id, exr, before)
         assert c.list_jobs(state="running") == [] and c.list_jobs(state="queued") == []
+
+
+# ------------------------------------------------------------------------------------------------ SIGTERM
+#: Seconds a SIGTERM'ed server may take to exit: uvicorn's graceful shutdown (5 s for open requests and event
+#: streams, relight.server.run), then the job watchers, the Dask client and the embedded cluster (20 s at most).
+SHUTDOWN_BOUND_S = 60.0
+
+
+def test_sigterm_with_running_jobs_of_every_kind(tmp_path_factory: pytest.TempPathFactory, data_tmp: Path) -> None:
+    """SIGTERM while an SHRM, a tradeoff sweep and a scene are running or queued (and an event stream is open):
+    the server exits cleanly (status 0, no traceback, no process of its group left, no tmp debris) within
+    SHUTDOWN_BOUND_S; the next server resumes all three and each finishes once."""
+    import httpx
+
+    from .routes.test_jobs_kinds import KINDS, events, submit
+
+    data = tmp_path_factory.mktemp("sigterm")
+    # the jobs wait (TEST ONLY delay) far longer than the test takes to send SIGTERM: none can finish before it
+    server = start_server(data, {"RELIGHT_TEST_JOB_DELAY_S": "60"})
+    with httpx.Client(base_url=server.url, timeout=60) as http:
+        env = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=500), data_tmp)).json()["id"]
+        ids = {kind: submit(http, kind, env, 7) for kind in KINDS}
+        wait_until(lambda: sum(http.get(f"/jobs/{i}").json()["state"] == "running" for i in ids.values()) == 2,
+                   90, "two jobs to run (two workers; the third queued)")
+        stream = events(http, f"/jobs/{ids['shrm']}/events")
+        next(stream)  # the stream is open
+        group = {p.pid for p in psutil.Process(server.pid).children(recursive=True)}
+        assert len(group) >= 2
+        t0 = time.monotonic()
+        assert server.proc is not None
+        server.proc.send_signal(signal.SIGTERM)
+        code = server.proc.wait(timeout=SHUTDOWN_BOUND_S)
+        took = time.monotonic() - t0
+        with contextlib.suppress(httpx.HTTPError):  # the open stream ends with the server, without "end"
+            assert [e.event for e in stream if e.event == "end"] == []
+    log = server.output()
+    server.stop()
+    # uvicorn raises the signal it caught again once it has shut down cleanly: "killed by SIGTERM" is the clean exit
+    assert code in (0, -signal.SIGTERM), f"exit status {code}:\n{log[-3000:]}"
+    assert "Traceback" not in log, log[-3000:]
+    assert took < SHUTDOWN_BOUND_S
+    wait_until(lambda: not any(psutil.pid_exists(p) and psutil.Process(p).status() != psutil.STATUS_ZOMBIE
+                               for p in group), 30, "the server's worker processes to exit")
+    assert list((data / "blobs" / "tmp").iterdir()) == []
+
+    restarted = start_server(data, log_name="server2.log")
+    try:
+        with httpx.Client(base_url=restarted.url, timeout=60) as http:
+            for kind, job_id in ids.items():
+                final = json.loads([e for e in events(http, f"/jobs/{job_id}/events")][-1].data)
+                assert final["state"] == "succeeded" and final["kind"] == kind, final
+                assert final["submissions"] == 2, final  # once by each server process
+            assert http.get(f"/tradeoffs/{ids['tradeoff']}").json()["points"]
+            assert http.get(f"/scenes/{ids['scene']}").json()["files"]
+            assert len(manifests_for(data, ids["shrm"])) == 1
+    finally:
+        restarted.stop()
