@@ -35,8 +35,8 @@ def analyze_mesh(store_root: str, digest: str, *, name: str, max_bytes: int, max
         mesh = build(decode(data, name, caps))
     except InputError:
         raise
-    except (ValueError, KeyError, IndexError, TypeError, OverflowError, RecursionError, MemoryError,
-            struct.error) as exc:  # a decoder path without its own check: still the file's fault
+    except (ValueError, KeyError, IndexError, TypeError, AttributeError, OverflowError, RecursionError,
+            MemoryError, struct.error) as exc:  # a decoder path without its own check: still the file's fault
         raise InputError(f"{name}: malformed mesh file ({type(exc).__name__}: {exc})") from None
     blob, lay = geometry_mod.to_bytes(mesh)
     geometry_digest = store.put_bytes(blob)

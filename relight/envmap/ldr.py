@@ -100,6 +100,9 @@ def _png16(buf: bytes) -> NDArray[np.float64]:
     as stored (alpha dropped, grey replicated), scaled by 1/65535."""
     import imagecodecs  # a large extension module, needed only for 16-bit PNG
 
+    from relight.envmap.png_check import check_png_stream
+
+    check_png_stream(buf, what="16-bit PNG")  # libpng's error path leaks a reference to None (png_check)
     samples: NDArray[Any] = np.asarray(imagecodecs.png_decode(buf))
     if samples.dtype != np.uint16:
         raise InputError(f"16-bit PNG decoded to {samples.dtype}, expected uint16")

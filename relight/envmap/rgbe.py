@@ -114,7 +114,7 @@ def parse_header(buf: bytes, *, complete: bool = True) -> HdrHeader:
         raise InputError("truncated Radiance HDR file: the resolution line is missing")
     res = buf[pos:end].rstrip(b"\r").decode("latin-1")
     parts = res.split()
-    if len(parts) != 4 or not (parts[1].isdigit() and parts[3].isdigit()):
+    if len(parts) != 4 or not all(p.isascii() and p.isdigit() for p in (parts[1], parts[3])):  # not '3²'
         raise InputError(f"bad Radiance resolution line {res[:60]!r}: expected '-Y <height> +X <width>'")
     if parts[0] != "-Y" or parts[2] != "+X":
         raise InputError(f"unsupported Radiance orientation {res[:60]!r}: only '-Y <height> +X <width>' "

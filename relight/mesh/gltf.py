@@ -220,7 +220,11 @@ def read_gltf_bytes(data: bytes, caps: Caps | None = None, name: str = "<gltf>",
         raise InputError(f"{name}: required glTF extensions {required} are not supported")
     prims: list[tuple[dict[str, Any], FloatArray]] = []
     for mesh_id, world in instances(doc, name):
-        for p in _item(doc, "meshes", mesh_id, name).get("primitives", []):
+        primitives = _item(doc, "meshes", mesh_id, name).get("primitives", [])
+        if not isinstance(primitives, list) or not all(isinstance(p, dict) and isinstance(p.get("attributes", {}),
+                                                                                      dict) for p in primitives):
+            raise InputError(f"{name}: meshes[{mesh_id}].primitives must be a list of objects with attributes")
+        for p in primitives:
             if p.get("mode", TRIANGLES) != TRIANGLES:
                 raise InputError(f"{name}: meshes[{mesh_id}] has a primitive of mode {p.get('mode')} (only "
                                  f"triangles, mode 4)")
