@@ -41,12 +41,44 @@ from relight.mitsuba_twin import (
 FloatArray = NDArray[np.float64]
 
 
-def write_obj(mesh: TriangleMesh, path: str | Path) -> None:
-    """``v``, ``vn`` (relight's normals) and ``f a//a b//b c//c`` lines, 1-based, in canonical order."""
+def write_obj(mesh: TriangleMesh, path: str | Path, uvs: NDArray[np.floating] | None = None) -> None:
+    """``v``, ``vn`` (relight's normals) and ``f a//a b//b c//c`` lines, 1-based, in canonical order; with ``uvs``
+    (V, 2) also ``vt`` lines and ``f a/a/a ...`` (Mitsuba then takes its shading tangent from them:
+    :func:`uv_frames`)."""
     with open(path, "w") as fh:
         fh.write("".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in mesh.positions))
+        if uvs is not None:
+            fh.write("".join(f"vt {u:.9g} {v:.9g}\n" for u, v in np.asarray(uvs, dtype=np.float64)))
         fh.write("".join(f"vn {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in mesh.normals))
-        fh.write("".join(f"f {a}//{a} {b}//{b} {c}//{c}\n" for a, b, c in mesh.faces + 1))
+        if uvs is None:
+            fh.write("".join(f"f {a}//{a} {b}//{b} {c}//{c}\n" for a, b, c in mesh.faces + 1))
+        else:
+            fh.write("".join(f"f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}\n" for a, b, c in mesh.faces + 1))
+
+
+def uv_frames(mesh: TriangleMesh, uvs: NDArray[np.floating], prim: NDArray[np.integer],
+              normals: NDArray[np.floating]) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Mitsuba's shading frame at surface points of triangles ``prim`` (P,) with interpolated unit ``normals``
+    (P, 3) when the mesh carries ``uvs`` (V, 2): per triangle ``dp/du = (dv2 dp1 - dv1 dp2) / det`` (``dp_k``,
+    ``(du_k, dv_k)`` the edges from corner 0, ``det = du1 dv2 - dv1 du2``), then ``s = normalize(dp/du - (n.dp/du)
+    n)``, ``t = n x s`` (``SurfaceInteraction.initialize_sh_frame``; matched to Mitsuba's ``si.sh_frame`` to
+    1e-5, float32, tests/relight/test_sh_prt_mitsuba.py). Returns relight frames (P, 3, 3), rows (s, t, n) — the
+    anisotropic twin's ``alpha_u`` acts along s — and whether each triangle's UVs are non-degenerate (det != 0;
+    where they are, Mitsuba falls back to an arbitrary frame)."""
+    uv = np.asarray(uvs, dtype=np.float64)
+    f = mesh.faces[np.asarray(prim)]
+    p0, p1, p2 = (mesh.positions[f[:, k]] for k in range(3))
+    u0, u1, u2 = (uv[f[:, k]] for k in range(3))
+    d1, d2 = u1 - u0, u2 - u0
+    det = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    ok = np.abs(det) > 0.0
+    dpdu = (d2[:, 1:2] * (p1 - p0) - d1[:, 1:2] * (p2 - p0)) / np.where(ok, det, 1.0)[:, None]
+    n = np.asarray(normals, dtype=np.float64)
+    s = dpdu - np.sum(dpdu * n, axis=1, keepdims=True) * n
+    length = np.linalg.norm(s, axis=1, keepdims=True)
+    ok &= length[:, 0] > 0.0
+    s = s / np.where(length > 0.0, length, 1.0)
+    return np.stack([s, np.cross(n, s), n], axis=1), np.asarray(ok)
 
 
 @dataclass(frozen=True)
@@ -68,10 +100,11 @@ class MeshRender:
 def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, view: NDArray[np.floating],
                         size: int, spp: int, albedo: float = 1.0, max_depth: int = 2, seed: int = 0,
                         texels: int = 8, bsdf: dict[str, Any] | None = None,
-                        env_rotation: float = 0.0) -> MeshRender:
+                        env_rotation: float = 0.0, uvs: NDArray[np.floating] | None = None) -> MeshRender:
     """Render the (unit-ball) mesh under the lat-long map (negatives clamped) seen along V (module docstring);
     ``bsdf`` (a ``relight.mitsuba_twin.twin`` dictionary) replaces the Lambertian of ``albedo``; ``env_rotation``
-    (radians about +Y) turns the environment."""
+    (radians about +Y) turns the environment; ``uvs`` (V, 2) give Mitsuba's shading tangents (:func:`uv_frames`:
+    the frame of an anisotropic twin)."""
     mi = mitsuba_module()
     p = np.maximum(np.asarray(pixels, dtype=np.float64), 0.0)
     reason = check_bitmap_shape(p.shape)
@@ -83,7 +116,7 @@ def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, vie
     bitmap = mitsuba_bitmap(p, texels_per_pixel(p.shape[1], texels))
     with tempfile.TemporaryDirectory() as tmp:
         obj = Path(tmp) / "mesh.obj"
-        write_obj(mesh, obj)
+        write_obj(mesh, obj, uvs)
         scene: dict[str, Any] = {
             "type": "scene",
             "integrator": {"type": "moment",
