@@ -1,10 +1,11 @@
 """``relight bake``: engine outputs for a whole set of maps in one command (issue 17, item 7).
 
-    relight bake MAPS... --target three|filament|gltf|babylon [--format ktx2,sh] [--size 256] [--levels L]
+    relight bake MAPS... --target three|filament|gltf|babylon [--format ktx2,sh,gltf] [--size 256] [--levels L]
                  [--epsilon E] [--sun extract|clamp=V|keep] --out DIR [-j N] [--server URL] [--json]
 
-Items: per map, ``ktx2`` writes ``DIR/<stem>.<target>.ktx2`` (+ ``.json``, ``relight export``'s files) and ``sh``
-writes ``DIR/<stem>.sh.json`` (every convention of ``relight.sh9``). One progress row per item (``done``,
+Items: per map, ``ktx2`` writes ``DIR/<stem>.<target>.ktx2`` (+ ``.json``, ``relight export``'s files), ``gltf``
+``DIR/<stem>.glb`` (+ ``.json``; ``relight export --format gltf``, ``--target gltf`` only, computed locally) and
+``sh`` writes ``DIR/<stem>.sh.json`` (every convention of ``relight.sh9``). One progress row per item (``done``,
 ``skipped`` or ``FAILED: <one-line error>``), then a summary; ``--json`` prints the rows as JSON instead.
 
 * **Content-addressed skip.** An item's key is the SHA-256 of the map file's bytes, the item's parameters and
@@ -34,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 #: Output formats an item can have (``relight.engine_export.FORMATS``).
-FORMATS = ("ktx2", "sh")
+FORMATS = ("ktx2", "sh", "gltf")
 #: Largest -j.
 MAX_JOBS = 64
 
@@ -77,11 +78,17 @@ def remote_exporter() -> Any:
 
 def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict[str, Any]]:
     """(file bytes, manifest) of one export, computed here or by ``opts["server"]`` (module docstring)."""
+    from relight.errors import InputError
+
+    if fmt == "gltf" and opts["target"] != "gltf":
+        raise InputError(f"gltf (EXT_lights_image_based) needs --target gltf, got {opts['target']!r}")
+    if fmt == "gltf" and opts.get("server"):
+        raise InputError("gltf items are computed locally only (the service exports ktx2 and sh)")
     if opts.get("server"):
         return remote_exporter()(opts["server"], path, fmt=fmt, target=opts["target"], size=opts["size"],  # type: ignore[no-any-return]
                                  levels=opts["levels"], epsilon=opts["epsilon"], sun=opts["sun"],
                                  api_key=opts.get("api_key"))
-    from relight.engine_export import chain_export, sh_export
+    from relight.engine_export import chain_export, gltf_export, sh_export
     from relight.envmap import read_envmap
 
     env = read_envmap(path)
@@ -89,6 +96,9 @@ def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict
     if fmt == "ktx2":
         files = chain_export(env.pixels, source, target=opts["target"], size=opts["size"], levels=opts["levels"],
                              epsilon=opts["epsilon"], sun_spec=opts["sun"])
+    elif fmt == "gltf":
+        files = gltf_export(env.pixels, source, size=opts["size"], levels=opts["levels"], epsilon=opts["epsilon"],
+                            sun_spec=opts["sun"])
     else:
         files = sh_export(env.pixels, source, sun_spec=opts["sun"])
     return files.data, files.manifest
@@ -102,7 +112,7 @@ def _bake_item(path: Path, fmt: str, out: Path, opts: dict[str, Any], digest: st
     manifest = {**manifest, "source": {"name": path.name, "sha256": digest, "height": src.get("height"),
                                        "width": src.get("width")}, "bake_key": key}
     text = json.dumps(manifest, indent=2, sort_keys=True).encode("utf-8")
-    if fmt == "ktx2":
+    if fmt in ("ktx2", "gltf"):
         _write_atomic(out, data)
         _write_atomic(out.with_name(out.name + ".json"), text)
     else:
@@ -113,12 +123,13 @@ def run_item(i: int, path_text: str, fmt: str, out_dir: str, opts: dict[str, Any
     """One item: skipped, done or failed (its one-line error); a top-level function so a process pool runs it."""
     path = Path(path_text)
     stem = path.name.split(".")[0]
-    out = Path(out_dir) / (f"{stem}.{opts['target']}.ktx2" if fmt == "ktx2" else f"{stem}.sh.json")
-    manifest = out.with_name(out.name + ".json") if fmt == "ktx2" else out
+    name = {"ktx2": f"{stem}.{opts['target']}.ktx2", "gltf": f"{stem}.glb", "sh": f"{stem}.sh.json"}[fmt]
+    out = Path(out_dir) / name
+    manifest = out if fmt == "sh" else out.with_name(out.name + ".json")
     row: dict[str, Any] = {"item": i, "map": path_text, "format": fmt, "out": str(out)}
     t0 = time.perf_counter()
     try:
-        params = ({k: opts[k] for k in ("target", "size", "levels", "epsilon", "sun")} if fmt == "ktx2"
+        params = ({k: opts[k] for k in ("target", "size", "levels", "epsilon", "sun")} if fmt != "sh"
                   else {"sun": opts["sun"]})
         digest = _file_digest(path)
         key = _key(digest, fmt, params)
@@ -193,7 +204,7 @@ def register(sub: Any) -> None:
     bp = sub.add_parser("bake", help="engine outputs (KTX2 chains, SH9) for many maps, resumable")
     bp.add_argument("maps", nargs="+")
     bp.add_argument("--target", required=True, choices=["three", "filament", "gltf", "babylon"])
-    bp.add_argument("--format", default="ktx2,sh", help="comma list of ktx2, sh")
+    bp.add_argument("--format", default="ktx2,sh", help="comma list of ktx2, sh, gltf (gltf: --target gltf, local)")
     bp.add_argument("--size", type=int, default=256)
     bp.add_argument("--levels", type=int, default=None)
     bp.add_argument("--epsilon", type=float, default=2.5e-5)

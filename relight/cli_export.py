@@ -11,6 +11,8 @@
         light (direction, RGB irradiance, illuminance, angular radius) under ``sun``; ``clamp=V`` limits every
         pixel's luminance to V and records the removed energy fraction; ``keep`` (default) does neither.
         ``--server URL`` computes it on the service (``GET /envmaps/{id}/ibl``): the same KTX2 bytes.
+        ``--format gltf [--into MODEL.glb]`` (``--target gltf``): a GLB with the chain as EXT_lights_image_based
+        (RGBD PNG faces, SH9 irradiance) and an extracted sun as a KHR_lights_punctual light (``relight.gltf_ibl``).
 
     relight dfg [--size 128] [--multiscatter] --out FILE.exr|FILE.png
         the split-sum DFG table (``relight.dfg``; docs/conventions.md "DFG"): R, G = (A, B) or, multiscatter,
@@ -67,12 +69,14 @@ def cmd_export(args: argparse.Namespace) -> int:
     from relight.errors import InputError
     from relight.sun import parse_sun
 
-    if args.format != "ktx2":
-        raise InputError(f"--format {args.format!r} is not written yet; use ktx2")
     out = Path(args.out)
     if not out.parent.is_dir():
         raise InputError(f"the folder of --out does not exist: {out.parent}")
     parse_sun(args.sun)
+    if args.format == "gltf":
+        return _export_gltf(args, out)
+    if args.into:
+        raise InputError("--into needs --format gltf")
     if args.server:  # the same export from the service (relight.cli_bake.remote_exporter): identical bytes
         from relight.cli_bake import remote_exporter
 
@@ -98,6 +102,37 @@ def cmd_export(args: argparse.Namespace) -> int:
         order = "-" if row["order"] is None else str(row["order"])
         print(f" {row['level']:>5}  {row['size']:>4}  {row['roughness']:>9.4f}  {row['method']:<6}  {order:>5}  "
               f"{row['predicted_rms']:>9.2e}  {row['bound_rms']:>8.2e}  {row['seconds']:>7.3f}")
+    return 0
+
+
+def _export_gltf(args: argparse.Namespace, out: Path) -> int:
+    """``--format gltf``: EXT_lights_image_based + the sun as KHR_lights_punctual, a GLB (``relight.gltf_ibl``)."""
+    from relight.engine_export import gltf_export
+    from relight.envmap import read_envmap
+    from relight.errors import InputError
+
+    if args.target != "gltf":
+        raise InputError(f"--format gltf writes EXT_lights_image_based, whose mips map linearly to roughness: use "
+                         f"--target gltf (got {args.target!r})")
+    if args.server:
+        raise InputError("--format gltf is computed locally only (the service exports ktx2 and sh)")
+    into = None
+    if args.into:
+        into_path = Path(args.into)
+        if not into_path.is_file():
+            raise InputError(f"--into: no such file: {into_path}")
+        into = into_path.read_bytes()
+    env = read_envmap(args.envmap)
+    source = {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
+    files = gltf_export(env.pixels, source, size=args.size, levels=args.levels, epsilon=args.epsilon,
+                        sun_spec=args.sun, into=into, extra={"into": args.into} if args.into else None)
+    _write_atomic(out, files.data)
+    _write_atomic(out.with_name(out.name + ".json"), json.dumps(files.manifest, indent=2).encode("utf-8"))
+    g = files.manifest["gltf"]
+    print(json.dumps(files.manifest, indent=2) if args.json else
+          f"{out}: EXT_lights_image_based, {g['levels']} levels x 6 RGBD PNGs ({g['rgbd_clamped']} texels above "
+          f"255 clamped){', sun as KHR_lights_punctual' if 'sun_node' in g else ''}, "
+          f"{files.manifest['seconds']['total']:.2f} s")
     return 0
 
 
@@ -158,7 +193,9 @@ def register(sub: Any) -> None:
     ex.add_argument("envmap")
     ex.add_argument("--target", required=True, choices=["three", "filament", "gltf", "babylon"],
                     help="engine whose roughness-to-mip mapping and split-sum lobe the chain follows")
-    ex.add_argument("--format", default="ktx2", choices=["ktx2"])
+    ex.add_argument("--format", default="ktx2", choices=["ktx2", "gltf"],
+                    help="ktx2: the cube chain; gltf: a GLB with EXT_lights_image_based (+ the sun as a light)")
+    ex.add_argument("--into", default=None, help="--format gltf: add the lighting to this GLB model")
     ex.add_argument("--size", type=int, default=256, help="face size of level 0 (a power of two)")
     ex.add_argument("--levels", type=int, default=None, help="mip levels (default: down to 1 x 1)")
     ex.add_argument("--epsilon", type=float, default=2.5e-5,

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-#: Export formats (``--format``; the service's ``format`` parameter).
-FORMATS = ("ktx2", "sh")
+#: Export formats (``--format``; the service's ``format`` parameter takes ktx2 and sh).
+FORMATS = ("ktx2", "sh", "gltf")
 #: Targets (``relight.cube_chain.TARGET_MAPPING``'s keys, repeated so that argument parsers import nothing numerical;
 #: tests/relight/test_engine_export.py checks they agree).
 TARGETS = ("three", "filament", "gltf", "babylon")
@@ -60,6 +60,30 @@ def chain_export(pixels: NDArray[np.floating], source: dict[str, Any], *, target
                        "target": chain.target, "roughness_mapping": chain.mapping, "sh9": manifest["sh9"],
                        "sun": sun.report},
                       writer=f"relight {__version__}")
+    return ExportFiles(data, manifest)
+
+
+def gltf_export(pixels: NDArray[np.floating], source: dict[str, Any], *, size: int, levels: int | None,
+                epsilon: float, sun_spec: str, into: bytes | None = None,
+                extra: dict[str, Any] | None = None) -> ExportFiles:
+    """The ``gltf`` target's chain, its SH9 and the sun as a GLB (``relight.gltf_ibl``), alone or added to ``into``."""
+    from relight import __version__
+    from relight.cube_chain import prefilter_chain
+    from relight.gltf_ibl import gltf_lighting
+    from relight.sh9 import all_conventions
+    from relight.sun import apply_sun
+
+    sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
+    chain = prefilter_chain(sun.pixels, target="gltf", size=size, levels=levels, epsilon=epsilon)
+    sh = all_conventions(sun.pixels)
+    data, summary = gltf_lighting([lv.faces for lv in chain.levels], sh["gltf"]["coefficients"], sun.report,
+                                  into=into, generator=f"relight {__version__}")
+    manifest: dict[str, Any] = {
+        "format": "gltf", "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
+        "lighting_order": chain.lighting_order, "source": source, "size": size, "levels": chain.summary(),
+        "seconds": chain.seconds, "relight_version": __version__, "sh9": sh, "sun": sun.report, "gltf": summary,
+        **(extra or {}),
+    }
     return ExportFiles(data, manifest)
 
 

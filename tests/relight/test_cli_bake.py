@@ -100,5 +100,24 @@ def test_one_bad_map_fails_alone(tmp_path: Path) -> None:
     assert lines[0].endswith(")") and "done" in lines[0] and "done" in lines[2]
     assert "broken.exr sh: FAILED: " in lines[1] and len(lines) == 4
     assert sorted(p.name for p in out.iterdir()) == ["a.sh.json", "b.sh.json"]
-    bad = _bake(str(maps[0]), "--target", "three", "--format", "gltf", "--out", str(out))
+    bad = _bake(str(maps[0]), "--target", "three", "--format", "obj", "--out", str(out))
     assert bad.returncode == 2 and "--format" in bad.stderr
+
+
+def test_gltf_items(tmp_path: Path) -> None:
+    """gltf items: a GLB per map (relight export --format gltf's bytes, skipped on a rerun); with another target
+    each fails alone, naming --target gltf."""
+    maps = _maps(tmp_path)
+    out = tmp_path / "out"
+    wrong = _bake(*map(str, maps), "--target", "three", "--format", "gltf,sh", "--size", "4", "--out", str(out))
+    assert wrong.returncode == 1
+    assert wrong.stdout.count("FAILED: gltf (EXT_lights_image_based) needs --target gltf") == 2
+    assert sorted(p.name for p in out.iterdir()) == ["a.sh.json", "b.sh.json"]
+    ok = _bake(*map(str, maps), "--target", "gltf", "--format", "gltf", "--size", "4", "--out", str(out), "--json")
+    assert ok.returncode == 0, ok.stderr
+    ref = tmp_path / "ref.glb"
+    subprocess.run([sys.executable, "-m", "relight.cli", "export", str(maps[0]), "--target", "gltf", "--format",
+                    "gltf", "--size", "4", "--out", str(ref)], check=True, capture_output=True)
+    assert (out / "a.glb").read_bytes() == ref.read_bytes()
+    again = _bake(*map(str, maps), "--target", "gltf", "--format", "gltf", "--size", "4", "--out", str(out), "--json")
+    assert [r["status"] for r in json.loads(again.stdout)["items"]] == ["skipped", "skipped"]
