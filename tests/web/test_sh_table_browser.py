@@ -1,6 +1,8 @@
 """The SH-table shader in a real browser (Debian Chromium, WebGL2 on SwiftShader; tests/web/conftest.py): all three
 modes of ``web/src/sh_table.js`` (the same GLSL as relight/gl/sh_table.py) against the CPU evaluation
-``relight.sh_render.shade`` on the same float16 table.
+``relight.sh_render.shade`` on the same float16 table; and the ``transfer`` mode (PRT with shadows and one
+interreflection bounce, ``relight.sh_prt_bounce``, on the teapot) against ``relight.sh_prt.shade_prt`` on the same
+float16 table and matrices.
 
 Tolerance per point (as tests/relight/test_gl_sh_table.py): a bilinear lookup may differ by a fixed-point
 sub-texel weight (2^-9 of the change over its 2 x 2 footprint) times |L_local,i|, plus the float32 rotation error
@@ -17,6 +19,9 @@ import numpy as np
 from relight.brdf.spec import parse_frame_brdf
 from relight.envmap.exr import to_half_safe
 from relight.indexing import full_block
+from relight.mesh import sample_mesh
+from relight.sh_prt import folded_transfer, shade_prt
+from relight.sh_prt_bounce import BounceSettings, vertex_transfer
 from relight.sh_render import shade
 from relight.sh_rotation import local_rotations, rotate_coefficients
 from relight.sh_table import SHTable, build_table
@@ -35,6 +40,10 @@ PROBE_JS = """async (a) => {
   const t = new SHTableGL(gl, read, { order: a.order, layout: a.layout, resolution: a.resolution,
                                        half: new Uint16Array(bytes.buffer) });
   const out = {};
+  if (a.transfer) {
+    const tb = Uint8Array.from(atob(a.transfer), (c) => c.charCodeAt(0));
+    t.setTransfer(new Uint16Array(tb.buffer), a.normals.length / 3);
+  }
   for (const mode of a.modes) {
     out[mode] = Array.from(t.probe(mode, new Float32Array(a.normals), new Float32Array(a.tangents), a.view,
                                    new Float32Array(a.light)));
@@ -81,3 +90,53 @@ def test_sh_table_shader_three_modes_match_cpu(page: Any) -> None:
     for mode in MODES:
         gpu = np.asarray(got[mode]).reshape(-1, 3)
         assert np.all(np.abs(gpu - cpu) <= tol), (mode, float(np.abs(gpu - cpu).max()))
+
+
+def test_transfer_mode_with_interreflections_matches_cpu(page: Any) -> None:
+    """Tolerance as tests/relight/test_sh_prt.py's GPU test: the sub-texel weight step times |L_local| over the
+    lookup's footprint plus float32 sums (1e-6 of sum |L_local| |c|), x 1.5; no rotation on the GPU here (it is
+    folded into the matrices on the CPU)."""
+    order, layout = 4, "parabolic"
+    mesh = sample_mesh("teapot")
+    table = build_table(parse_frame_brdf("ashikhmin-shirley:nu=24,nv=8,rs=0.6,rd=0.1"), resolution=32, order=order)
+    frames = projected_frames(mesh.normals, (1.0, 0.3, 0.2))
+    frames[1::2, 1] *= -1.0  # mirrored frames
+    vt = vertex_transfer(table, mesh, frames, BounceSettings(rays=128, bounces=1))
+    total = vt.total()
+    assert total.shape[-1] == 1  # a grey table: one matrix per vertex
+    folded = folded_transfer(frames, total[..., 0], order)
+    n, row = 25, 28
+    padded = np.zeros((mesh.n_vertices, n, row))
+    padded[:, :, :n] = folded
+    half_t = np.asarray(to_half_safe(padded)[0], dtype="<f2")
+    half = np.broadcast_to(to_half_safe(table.coefficients)[0], table.coefficients.shape[:3] + (3,))
+    tangents = np.concatenate([frames[:, 0], np.where(np.linalg.det(frames) < 0, -1.0, 1.0)[:, None]], axis=1)
+    view = np.array([0.3, 0.45, 0.84]) / np.linalg.norm([0.3, 0.45, 0.84])
+    rng = np.random.default_rng(2)
+    light = rng.normal(size=(25, 3)) * 0.3
+    light[0] += 3.0
+    got = page.evaluate(PROBE_JS, {
+        "order": order, "layout": layout, "resolution": table.resolution, "modes": ["transfer"],
+        "half": base64.b64encode(np.ascontiguousarray(np.transpose(half, (2, 0, 1, 3)), "<f2").tobytes()).decode(),
+        "transfer": base64.b64encode(half_t.tobytes()).decode(),
+        "normals": mesh.normals.ravel().tolist(), "tangents": tangents.ravel().tolist(), "view": view.tolist(),
+        "light": light.ravel().tolist()})
+    gpu = np.asarray(got["transfer"]).reshape(-1, 3)
+
+    same = SHTable(np.asarray(half, np.float64), table.views, table.valid, order, layout, {})
+    fold16 = np.asarray(half_t, np.float64)[:, :, :n]
+    cpu = shade_prt(same, light, frames, view, fold16, exact_azimuth=False)
+    vl = np.einsum("nij,j->ni", frames, view)
+    local = np.abs(np.einsum("vij,jc->vic", fold16, light))
+    x, y = view_to_texel(layout, same.resolution, vl)
+    x0 = np.clip(np.floor(x).astype(int), 0, same.resolution - 2)
+    y0 = np.clip(np.floor(y).astype(int), 0, same.resolution - 2)
+    quad = np.stack([same.coefficients[y0 + i, x0 + j] for i in (0, 1) for j in (0, 1)])
+    coef = np.abs(same.lookup(vl, exact_azimuth=False))
+    tol = SLACK * (FILTER_STEP * np.einsum("nic,nic->nc", local, quad.max(0) - quad.min(0))
+                   + 1e-6 * np.einsum("nic,nic->nc", local, coef)) + 1e-6
+    assert np.abs(cpu).max() > 0.05 and (vl[:, 2] > 0).sum() > 100
+    assert np.all(np.abs(gpu - cpu) <= tol), float(np.abs(gpu - cpu).max())
+    # the bounce is in what the browser drew: without it the CPU result differs by more than the tolerance
+    shadow_only = shade_prt(same, light, frames, view, folded_transfer(frames, vt.direct, order))
+    assert np.abs(shadow_only - cpu).max() > 10 * tol.max()

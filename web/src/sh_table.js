@@ -2,8 +2,10 @@
 // relight/gl/sh_table.py, with the same GLSL (web/shaders/sh_table.vert.glsl, sh_rotation.glsl; the rotation of the
 // lighting into each vertex's frame runs on the GPU). Modes: 'general' (view and lighting both change),
 // 'fixed-light' (per-vertex local lighting prepared once per lighting), 'fixed-view' (per-vertex world-frame table
-// coefficients prepared once per view). The per-vertex data is a float32 RGBA texture DATA_WIDTH texels wide,
-// texel p * n + i = coefficient i of vertex p (docs/conventions.md, "SH tables").
+// coefficients prepared once per view), and 'transfer' (PRT, §5: per-vertex folded transfer matrices T'_p, shadows
+// or interreflections, uploaded by setTransfer). The fixed modes' per-vertex data is a float32 RGBA texture
+// DATA_WIDTH texels wide, texel p * n + i = coefficient i of vertex p; the transfer's is float16 RGBA, each matrix
+// row padded to a multiple of 4 values, vertex p from texel p * n * ceil(n / 4) (docs/conventions.md, "SH tables").
 //
 // Raw WebGL2 (no three.js) so that tests/web/test_sh_table_browser.py can probe the shader at given frames and
 // compare with the CPU evaluation (relight.sh_render.shade) on the same float16 table.
@@ -11,7 +13,10 @@
 import { build } from './shaders.js';
 
 export const MODES = ['general', 'fixed-light', 'fixed-view'];
-const MODE_DEFINE = { general: 'MODE_GENERAL', 'fixed-light': 'MODE_FIXED_LIGHT', 'fixed-view': 'MODE_FIXED_VIEW' };
+const MODE_DEFINE = {
+  general: 'MODE_GENERAL', 'fixed-light': 'MODE_FIXED_LIGHT', 'fixed-view': 'MODE_FIXED_VIEW',
+  transfer: 'MODE_TRANSFER',
+};
 /** Width of the probe / per-vertex data targets (relight.gl.sh_table.DATA_WIDTH). */
 export const DATA_WIDTH = 2048;
 export const SHADER_FILES = ['sh_table.vert.glsl', 'sh_table.frag.glsl'];
@@ -164,9 +169,36 @@ export class SHTableGL {
     return [tex, out];
   }
 
-  /** The fixed modes' per-vertex data (nothing for 'general'). */
+  /**
+   * Folded transfer matrices for 'transfer' (relight.gl.sh_table.TableRenderer.set_transfer): float16 bits of
+   * (count, n, 4 ceil(n / 4)), each row zero-padded, vertex-major.
+   * @param {Uint16Array} half
+   * @param {number} count vertices
+   */
+  setTransfer(half, count) {
+    const gl = this.gl;
+    const row = 4 * Math.ceil(this.n / 4);
+    if (half.length !== count * this.n * row) {
+      throw new Error(`transfer data holds ${half.length} values, expected ${count * this.n * row}`);
+    }
+    const texels = half.length / 4;
+    const rows = Math.max(1, Math.ceil(texels / DATA_WIDTH));
+    const data = new Uint16Array(rows * DATA_WIDTH * 4);
+    data.set(half);
+    if (this.data) {
+      gl.deleteTexture(this.data);
+    }
+    this.data = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, this.data);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA16F, DATA_WIDTH, rows, 0, gl.RGBA, gl.HALF_FLOAT, data);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+  }
+
+  /** The fixed modes' per-vertex data (nothing for 'general'; 'transfer' reads what setTransfer uploaded). */
   prepare(mode, vertices, count, view, light) {
-    if (mode === 'general') {
+    if (mode === 'general' || mode === 'transfer') {
       return;
     }
     const prog = this.program(mode, 'PRECOMPUTE');
