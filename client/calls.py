@@ -51,6 +51,32 @@ class Call(Generic[T]):
     kwargs: dict[str, Any] = field(default_factory=dict)
 
 
+#: Seconds a client keeps following ``Retry-After`` on 429 (the server's active-job cap is full) before giving up.
+RETRY_429_S = 300.0
+#: Each wait is ``Retry-After`` times a random factor in [1, 1 + RETRY_JITTER]: clients refused together do not all
+#: come back in the same instant.
+RETRY_JITTER = 0.5
+
+
+def retry_wait(resp: httpx.Response, call: Call[Any], deadline: float, now: float) -> float | None:
+    """Seconds to wait before sending ``call`` again after ``resp``, or None: only a 429 with ``Retry-After``, only a
+    call whose body can be sent again (JSON or bytes; a streamed upload is never refused for the cap), and only
+    while the wait ends before ``deadline`` (a ``time.monotonic`` value)."""
+    import random
+
+    if resp.status_code != 429:
+        return None
+    content = call.kwargs.get("content")
+    if content is not None and not isinstance(content, bytes):
+        return None
+    try:
+        after = max(0.0, float(resp.headers.get("retry-after", "")))
+    except ValueError:
+        return None
+    wait = after * (1.0 + RETRY_JITTER * random.random())  # noqa: S311 - spreading retries, not a secret
+    return wait if now + wait < deadline else None
+
+
 @dataclass(frozen=True)
 class IblAnswer:
     """One answer of ``GET /envmaps/{id}/ibl``: the file (200) or, while it is computed, the job (202)."""

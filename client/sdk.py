@@ -19,6 +19,7 @@ from pydantic import BaseModel
 from relight.client.calls import (
     CHUNK,
     DEFAULT_URL,
+    RETRY_429_S,
     Call,
     Calls,
     IblExport,
@@ -30,6 +31,7 @@ from relight.client.calls import (
     headers_for,
     ibl_params,
     job_body,
+    retry_wait,
     scene_body,
     tradeoff_body,
 )
@@ -51,8 +53,9 @@ class RelightClient:
     """Synchronous client. ``with RelightClient(url) as c: job = c.submit(...); c.wait(job.id)``."""
 
     def __init__(self, base_url: str = DEFAULT_URL, *, api_key: str | None = None, timeout: float = 60.0,
-                 transport: httpx.BaseTransport | None = None) -> None:
+                 transport: httpx.BaseTransport | None = None, retry_429_s: float = RETRY_429_S) -> None:
         self.base_url = base_url.rstrip("/")
+        self.retry_429_s = retry_429_s  # how long to follow Retry-After when the server's job cap is full
         self._http = httpx.Client(base_url=self.base_url, headers=headers_for(api_key), timeout=timeout,
                                   transport=transport)
 
@@ -66,10 +69,16 @@ class RelightClient:
         self._http.close()
 
     def _do(self, call: Call[T]) -> T:
-        try:
-            resp = self._http.request(call.method, call.path, **call.kwargs)
-        except httpx.HTTPError as exc:
-            raise from_httpx(exc) from exc
+        deadline = time.monotonic() + self.retry_429_s
+        while True:
+            try:
+                resp = self._http.request(call.method, call.path, **call.kwargs)
+            except httpx.HTTPError as exc:
+                raise from_httpx(exc) from exc
+            wait = retry_wait(resp, call, deadline, time.monotonic())
+            if wait is None:
+                break
+            time.sleep(wait)
         if resp.status_code >= 400:
             raise from_response(resp)
         return call.parse(resp)
@@ -234,8 +243,10 @@ class AsyncRelightClient:
     """Asynchronous client with the same operations as :class:`RelightClient`."""
 
     def __init__(self, base_url: str = DEFAULT_URL, *, api_key: str | None = None, timeout: float = 60.0,
-                 transport: httpx.AsyncBaseTransport | None = None, limits: httpx.Limits | None = None) -> None:
+                 transport: httpx.AsyncBaseTransport | None = None, limits: httpx.Limits | None = None,
+                 retry_429_s: float = RETRY_429_S) -> None:
         self.base_url = base_url.rstrip("/")
+        self.retry_429_s = retry_429_s
         self._http = httpx.AsyncClient(base_url=self.base_url, headers=headers_for(api_key), timeout=timeout,
                                        transport=transport, limits=limits or httpx.Limits())
 
@@ -249,10 +260,18 @@ class AsyncRelightClient:
         await self._http.aclose()
 
     async def _do(self, call: Call[T]) -> T:
-        try:
-            resp = await self._http.request(call.method, call.path, **call.kwargs)
-        except httpx.HTTPError as exc:
-            raise from_httpx(exc) from exc
+        import asyncio
+
+        deadline = time.monotonic() + self.retry_429_s
+        while True:
+            try:
+                resp = await self._http.request(call.method, call.path, **call.kwargs)
+            except httpx.HTTPError as exc:
+                raise from_httpx(exc) from exc
+            wait = retry_wait(resp, call, deadline, time.monotonic())
+            if wait is None:
+                break
+            await asyncio.sleep(wait)
         if resp.status_code >= 400:
             raise from_response(resp)
         return call.parse(resp)

@@ -186,6 +186,8 @@ def _buffers(doc: dict[str, Any], bin_chunk: bytes | None, base_dir: Path | None
     out = []
     for k, b in enumerate(doc.get("buffers", [])):
         uri = b.get("uri") if isinstance(b, dict) else None
+        if uri is not None and not isinstance(uri, str):
+            raise InputError(f"{name}: buffers[{k}].uri must be a string, not {type(uri).__name__}")
         if uri is None:
             if bin_chunk is None:
                 raise InputError(f"{name}: buffers[{k}] has no uri and there is no GLB BIN chunk")

@@ -38,8 +38,8 @@ MAX_PIXELS: Final = 64 * 128
 #: Mesh caps of the targets (small for the same reason).
 MESH_BYTES, MESH_VERTICES, MESH_FACES = 1 << 16, 4096, 8192
 #: What the mesh worker maps to a 422 besides InputError (relight.worker.meshes.analyze_mesh).
-MESH_ERRORS: Final = (ValueError, KeyError, IndexError, TypeError, OverflowError, RecursionError, MemoryError,
-                      struct.error)
+MESH_ERRORS: Final = (ValueError, KeyError, IndexError, TypeError, AttributeError, OverflowError, RecursionError,
+                      MemoryError, struct.error)
 
 
 class Crash(AssertionError):
