@@ -113,3 +113,23 @@ def test_measured_merl_brdf(cluster: tuple[Server, list[Proc]], sample_exr: byte
         assert job.state == JobState.succeeded
         manifest = c.get_shrm(job.id).model_dump_json()
         assert str(server.args[server.args.index("--data") + 1]) not in manifest and '"path"' not in manifest
+
+
+def test_cors_on_real_responses(cluster: tuple[Server, list[Proc]], sample_exr: bytes) -> None:
+    """CORS headers on real answers, not only on preflights: a 200 with its ETag exposed, a 201 with Location, the
+    401 and 404 problems (the browser must be able to read why), and never for another origin."""
+    server, _ = cluster
+    key = {"X-API-Key": API_KEY}
+    with httpx.Client(base_url=server.url, timeout=60) as http:
+        up = http.post("/envmaps", content=sample_exr, headers={**key, "Origin": ORIGIN})
+        assert up.status_code in (200, 201) and up.headers["access-control-allow-origin"] == ORIGIN
+        env_id = up.json()["id"]
+        got = http.get(f"/envmaps/{env_id}/preview.png", headers={**key, "Origin": ORIGIN})
+        assert got.status_code == 200 and got.headers.get("etag")
+        exposed = {h.strip().lower() for h in got.headers["access-control-expose-headers"].split(",")}
+        assert {"etag", "location", "retry-after"} <= exposed
+        for resp in (http.get("/jobs", headers={"Origin": ORIGIN}),  # no key: 401
+                     http.get(f"/jobs/{'0' * 64}", headers={**key, "Origin": ORIGIN})):  # 404
+            assert resp.status_code in (401, 404) and resp.headers["access-control-allow-origin"] == ORIGIN
+        other = http.get("/jobs", headers={**key, "Origin": "https://evil.example"})
+        assert other.status_code == 200 and "access-control-allow-origin" not in other.headers
