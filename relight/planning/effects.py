@@ -10,8 +10,8 @@ P_B = 0 need no V at all (the map is indexed by R or N, computed per pixel), so 
 
 Every plan lists each effect simulated and each effect skipped with the reason (view dependence of a radially
 symmetric lobe, q != 0 terms of an azimuthally symmetric one, orders above the tolerance, near-viewer variation,
-self-shadowing (simulated for Lambertian lobes on meshes by precomputed transfer, ``relight.planning.shadows``; not
-for glossy lobes) and interreflection, which is not yet supported).
+self-shadowing and interreflection (``relight.planning.shadows``), and per lobe what its planner-v2 representation
+simulates and skips (``relight.planning.represent``).
 """
 
 from __future__ import annotations
@@ -19,13 +19,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from relight.planning.report import Computation, Effect, ShadowPlan
+from relight.planning.report import Computation, Effect, LobeRepresentation, ShadowPlan
 from relight.planning.scene import SceneObject
 from relight.planning.shadows import shadow_effects
 
-UNSUPPORTED = (
-    ("interreflection", "not simulated: not yet supported (objects do not light each other)"),
-)
 
 
 def view_spread(size: float, distance: float) -> float:
@@ -73,7 +70,7 @@ def viewer_of(obj: SceneObject, comps: list[Computation], epsilon: float) -> Vie
 
 
 def effects(obj: SceneObject, comps: list[Computation], viewer: Viewer, epsilon: float,
-            shadows: ShadowPlan | None = None) -> list[Effect]:
+            shadows: ShadowPlan | None = None, reps: list[LobeRepresentation] | None = None) -> list[Effect]:
     """What is simulated and what is skipped for one object, with reasons (``shadows``: its diffuse transfer,
     :func:`relight.planning.shadows.shadow_plan`)."""
     out: list[Effect] = []
@@ -118,7 +115,29 @@ def effects(obj: SceneObject, comps: list[Computation], viewer: Viewer, epsilon:
                       reason="the maps do not depend on the shape; it only sets the normals looked up per pixel"))
     out.append(Effect(effect="parallax of the environment", simulated=False,
                       reason="the environment is distant (seed 000 §3): the same lighting at every point"))
-    out.extend(shadow_effects(obj, comps, shadows))
-    for effect, reason in UNSUPPORTED:
-        out.append(Effect(effect=effect, simulated=False, reason=reason))
+    out.extend(representation_effects(reps or [], epsilon))
+    out.extend(shadow_effects(obj, comps, shadows, reps))
+    return out
+
+
+def representation_effects(reps: list[LobeRepresentation], epsilon: float) -> list[Effect]:
+    """Per lobe: its planner-v2 representation, anisotropy, the lighting bands it discards and run-time edits."""
+    out = []
+    for r in reps:
+        out.append(Effect(effect=f"representation: {r.kind} -> {r.representation} (seed {r.seed})",
+                          simulated=r.executed, reason=r.reason + ("" if r.executed else
+                                                                   f"; not executed: {r.not_executed_reason}")))
+        if r.representation in ("sh_table", "prt_matrix"):
+            f = r.terms["F"]
+            out.append(Effect(effect=f"lighting and BRDF above band {f}: {r.kind}", simulated=False, reason=(
+                f"an order-{f} table ({(f + 1) ** 2} coefficients) sees bands <= {f} only: predicted relative RMS "
+                f"{r.predicted_error:.3g}" + (f" ({r.note})" if r.note else f" <= sqrt(epsilon) = "
+                                                                            f"{math.sqrt(epsilon):.3g}"))))
+            if r.terms.get("anisotropic"):
+                out.append(Effect(effect=f"anisotropy: {r.kind}", simulated=True,
+                                  reason="per-view SH table in the tangent frame (seed 003)"))
+        if r.representation == "gaussian_lobes":
+            out.append(Effect(effect=f"material edits at run time: {r.kind}", simulated=True,
+                              reason="the K Gaussian lobes are the material: edit mu, sigma, w without reprocessing "
+                              "(seed 002 §1); the chain is shared"))
     return out

@@ -80,6 +80,68 @@ class ShadowPlan(Report):
 
 
 @dataclass(frozen=True, kw_only=True)
+class Alternative(Report):
+    """A representation considered for a lobe and not chosen, and why."""
+
+    representation: str
+    why_not: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class LobeRepresentation(Report):
+    """Planner v2's choice for one lobe of one object (``relight.planning.represent``): the representation, its
+    seed, why, its terms (orders, K, coefficients), the shadows it simulates, the predicted relative RMS error
+    (``error_kind``: ``bounded`` by the tolerance's rules, or ``approximate`` where no bound exists and tests
+    measure it) with its parts, the predicted precompute seconds of its jobs (before sharing) and milliseconds per
+    frame, the jobs (ids of ``ScenePlan.jobs``) and the alternatives."""
+
+    lobe: Any
+    kind: str
+    representation: str
+    seed: str
+    reason: str
+    terms: dict[str, Any]
+    shadows: str
+    predicted_error: float
+    error_kind: str
+    error_parts: dict[str, float]
+    predicted_precompute_s: float
+    per_frame_ms: float
+    jobs: list[str]
+    computation: str | None = None
+    executed: bool = True
+    not_executed_reason: str | None = field(default=None, metadata=OMIT_NONE)
+    note: str | None = field(default=None, metadata=OMIT_NONE)
+    alternatives: list[Alternative] = field(default_factory=list)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlannedJob(Report):
+    """One precomputation of the plan, shared by every object listed (one chain per environment, one fit or table
+    per material, one transfer per mesh and order)."""
+
+    id: str
+    kind: str
+    params: dict[str, Any]
+    predicted_seconds: float
+    shared_by: list[str] = field(default_factory=list)
+    executed: bool = True
+
+
+@dataclass(frozen=True, kw_only=True)
+class FramePlan(Report):
+    """The per-frame cost of drawing the scene (``relight.planning.costs``) against the frame budget."""
+
+    budget_ms: float | None
+    predicted_ms: float
+    met: bool | None
+    per_object_ms: dict[str, float]
+    downgrades: list[str] = field(default_factory=list)
+    note: str = ("milliseconds on the machine the per-frame constants were fitted on (relight.planning.costs); "
+                 "pixels from the object's size and distance on a 1024 x 1024 canvas at 45 degrees")
+
+
+@dataclass(frozen=True, kw_only=True)
 class ObjectPlan(Report):
     """One object: itself (``relight.planning.scene.SceneObject``'s fields), its viewer (distant: one V, the global
     SHRM, eq. 7; near: V per pixel, the local SHRM, eq. 6), output rows, computations, worst error and effects."""
@@ -102,6 +164,14 @@ class ObjectPlan(Report):
     effects: list[Effect]
     #: the diffuse transfer the run computes (``relight.planning.shadows``), None without shadows
     shadows: ShadowPlan | None = field(default=None, metadata=OMIT_NONE)
+    #: planner v2 (issue 16 item 4): the object's requests and each lobe's representation
+    shadows_requested: str = "auto"
+    interreflections: bool = False
+    mesh: str | None = field(default=None, metadata=OMIT_NONE)
+    tangent: dict[str, Any] | None = field(default=None, metadata=OMIT_NONE)
+    material_edited: bool = False
+    representations: list[LobeRepresentation] = field(default_factory=list)
+    per_frame_ms: float = 0.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -157,6 +227,10 @@ class ScenePlan(Report):
     cost_model: CostModelInfo
     budget_met: bool | None = field(default=None, metadata=OMIT_NONE)
     budget_ladder: list[BudgetStep] | None = field(default=None, metadata=OMIT_NONE)
+    #: planner v2: the scene's lighting mode, the shared jobs and the per-frame cost against the frame budget
+    lighting_mode: str = "static"
+    jobs: list[PlannedJob] = field(default_factory=list)
+    frame: FramePlan | None = field(default=None, metadata=OMIT_NONE)
     budget_note: str | None = field(default=None, metadata=OMIT_NONE)
 
 

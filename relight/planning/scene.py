@@ -1,4 +1,6 @@
-"""A scene for the planner: an environment, objects and a tolerance or a time budget (seed 000 §3.1, §5.1).
+"""A scene for the planner: an environment, objects and a tolerance or a time budget (seed 000 §3.1, §5.1), with
+planner v2's inputs (issue 16 item 4): per object ``shadows``, ``interreflections``, ``mesh`` and ``tangent``, per
+scene ``lighting``, ``material_edits`` and ``frame_budget_ms``.
 
 One schema: :func:`scene_from_dict` validates a scene's JSON form strictly against the limits named here, and the
 API's ``SceneCreate`` takes its limits from the same constants. Every object has a shape (the analytic sphere or a
@@ -38,8 +40,25 @@ MAX_OBJECT_DISTANCE = 1e9
 #: Names of scenes and objects: 1-64 letters, digits, '_', '-' or '.', starting with a letter or digit (file names).
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 _NAME = re.compile(NAME_PATTERN)
-SCENE_KEYS = frozenset({"name", "environment", "objects", "epsilon", "time_budget_s", "size"})
-OBJECT_KEYS = frozenset({"name", "shape", "size", "distance", "material", "view"})
+SCENE_KEYS = frozenset({"name", "environment", "objects", "epsilon", "time_budget_s", "size", "lighting",
+                        "material_edits", "frame_budget_ms"})
+OBJECT_KEYS = frozenset({"name", "shape", "size", "distance", "material", "view", "shadows", "interreflections",
+                         "mesh", "tangent"})
+#: Per object: which shadows to simulate (planner v2, issue 16 item 4). ``auto``: on for meshes, off for the analytic
+#: sphere (convex: it never shadows itself); ``approximate`` accepts seed 002's visibility at each lobe's centre,
+#: ``exact`` asks for shadows exact within the lighting's order (transfer inside the integral: seeds 003, 004).
+SHADOW_MODES: tuple[str, ...] = ("auto", "none", "approximate", "exact")
+#: Per scene: how the lighting changes while the viewer runs. ``rotating``: the environment turns (free for every
+#: representation: rotate N and V, or the SH lighting vector); ``dynamic``: new lighting every frame (moving area
+#: lights, video environments), which only SH-lighting representations absorb without a new precomputation.
+LIGHTING_MODES: tuple[str, ...] = ("static", "rotating", "dynamic")
+#: Tangent fields of anisotropic materials (``relight.sh_render.frames_for``): the azimuthal field about +Y, the
+#: projection of a constant direction (Kautz et al. 2002's brushing direction), or the mesh's own tangents.
+TANGENT_KINDS: tuple[str, ...] = ("azimuthal", "project", "mesh")
+#: Largest per-frame budget, milliseconds (one second per frame is no longer interactive).
+MAX_FRAME_BUDGET_MS = 1000.0
+#: Mesh references: a file path (CLI) or a mesh id from ``POST /meshes`` (the service): 1-512 printable characters.
+MAX_MESH_REF = 512
 #: Direction toward the viewer when an object gives none (+Z).
 DEFAULT_VIEW: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
@@ -54,10 +73,32 @@ class SceneObject:
     distance: float
     material: Any
     view: tuple[float, float, float] = DEFAULT_VIEW
+    shadows: str = "auto"
+    interreflections: bool = False
+    mesh: str | None = None  # an uploaded mesh (path or id); ``shape`` is then "mesh"
+    tangent: dict[str, Any] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {"name": self.name, "shape": self.shape, "size": self.size, "distance": self.distance,
                 "material": self.material, "view": list(self.view)}
+
+    @property
+    def is_mesh(self) -> bool:
+        """Drawn from a mesh (a sample mesh or an uploaded one), not the analytic sphere."""
+        return self.shape != "sphere"
+
+    @property
+    def mesh_ref(self) -> str | None:
+        """The mesh's name: the uploaded mesh's reference, the sample mesh's name, None for the sphere."""
+        return self.mesh if self.mesh is not None else (self.shape if self.is_mesh else None)
+
+    @property
+    def shadowed(self) -> str:
+        """The shadows asked for, ``auto`` resolved: none on the sphere (convex), else the request (auto: exact if
+        affordable, decided per lobe by the planner)."""
+        if not self.is_mesh:
+            return "none"
+        return self.shadows
 
 
 @dataclass(frozen=True)
@@ -70,11 +111,17 @@ class Scene:
     time_budget_s: float | None = None
     size: int | None = None
     name: str = "scene"
+    lighting: str = "static"
+    material_edits: tuple[str, ...] = ()  # names of the objects whose material is edited live
+    frame_budget_ms: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {"name": self.name, "environment": self.environment, "epsilon": self.epsilon,
                 "time_budget_s": self.time_budget_s, "size": self.size,
                 "objects": [o.as_dict() for o in self.objects]}
+
+    def edited(self, name: str) -> bool:
+        return name in self.material_edits
 
 
 def _number(where: str, value: Any, *, lo: float | None = None, lo_open: bool = True, hi: float | None = None,
@@ -104,7 +151,7 @@ def _name(where: str, name: Any) -> str:
 
 
 def _object_from_dict(k: int, d: Any) -> SceneObject:
-    from relight.brdf.spec import parse_brdf
+    from relight.brdf.spec import parse_frame_brdf
 
     where = f"objects[{k}]"
     if not isinstance(d, Mapping):
@@ -114,8 +161,16 @@ def _object_from_dict(k: int, d: Any) -> SceneObject:
         if key not in d:
             raise InputError(f"{where}: missing {key!r}")
     name = _name(f"{where}.name", d.get("name", f"object{k}"))
-    shape = d.get("shape", "sphere")
-    if shape not in SHAPES:
+    mesh = d.get("mesh")
+    if mesh is not None:
+        if not isinstance(mesh, str) or not 0 < len(mesh.strip()) <= MAX_MESH_REF or not mesh.isprintable():
+            raise InputError(f"{where}.mesh must be a mesh file path or a mesh id (1-{MAX_MESH_REF} printable "
+                             f"characters), got {mesh!r}")
+        if "shape" in d:
+            raise InputError(f"{where}: give either shape (a sample shape) or mesh (an uploaded mesh), not both")
+        mesh = mesh.strip()
+    shape = "mesh" if mesh is not None else d.get("shape", "sphere")
+    if mesh is None and shape not in SHAPES:
         raise InputError(f"{where}.shape must be one of {list(SHAPES)}, got {shape!r}")
     size = _number(f"{where}.size", d["size"], lo=0.0, hi=MAX_OBJECT_SIZE, hi_open=False)
     distance = _number(f"{where}.distance", d["distance"], lo=0.0, hi=MAX_OBJECT_DISTANCE, hi_open=False)
@@ -133,11 +188,47 @@ def _object_from_dict(k: int, d: Any) -> SceneObject:
     if not isinstance(material, (str, Mapping, list)):
         raise InputError(f"{where}.material must be a BRDF spec (string, object or list), got {material!r}")
     try:
-        parse_brdf(material)
+        parse_frame_brdf(material)  # isotropic, anisotropic (seed 003) or measured
     except InputError as exc:
         raise InputError(f"{where}.material: {exc}") from None
+    shadows = d.get("shadows", "auto")
+    if shadows not in SHADOW_MODES:
+        raise InputError(f"{where}.shadows must be one of {list(SHADOW_MODES)}, got {shadows!r}")
+    inter = d.get("interreflections", False)
+    if not isinstance(inter, bool):
+        raise InputError(f"{where}.interreflections must be true or false, got {inter!r}")
+    tangent = _tangent(f"{where}.tangent", d.get("tangent"), shape)
     return SceneObject(name=name, shape=str(shape), size=size, distance=distance, material=material,
-                       view=(view[0] / n, view[1] / n, view[2] / n))
+                       view=(view[0] / n, view[1] / n, view[2] / n), shadows=str(shadows), interreflections=inter,
+                       mesh=mesh, tangent=tangent)
+
+
+def _tangent(where: str, t: Any, shape: str) -> dict[str, Any] | None:
+    """A tangent field (:data:`TANGENT_KINDS`): ``{"kind": "azimuthal"[, "axis": v]}``, ``{"kind": "project",
+    "direction": v}`` or ``{"kind": "mesh"}`` (the mesh's own tangents: meshes only)."""
+    if t is None:
+        return None
+    if not isinstance(t, Mapping) or t.get("kind") not in TANGENT_KINDS:
+        raise InputError(f"{where} must be an object with kind one of {list(TANGENT_KINDS)}, got {t!r}")
+    kind = str(t["kind"])
+    keys = {"azimuthal": {"kind", "axis"}, "project": {"kind", "direction"}, "mesh": {"kind"}}[kind]
+    _unknown(where, t, frozenset(keys))
+    out: dict[str, Any] = {"kind": kind}
+    for key in sorted(keys - {"kind"}):
+        if key not in t:
+            if kind == "project":
+                raise InputError(f"{where}: kind 'project' needs a direction (3 numbers)")
+            continue
+        v = t[key]
+        if not isinstance(v, (list, tuple)) or len(v) != 3:
+            raise InputError(f"{where}.{key} must be 3 numbers, got {v!r}")
+        vec = [_number(f"{where}.{key}[{i}]", x) for i, x in enumerate(v)]
+        if not any(vec):
+            raise InputError(f"{where}.{key} must not be the zero vector")
+        out[key] = vec
+    if kind == "mesh" and shape == "sphere":
+        raise InputError(f"{where}: kind 'mesh' needs a mesh (the analytic sphere has no stored tangents)")
+    return out
 
 
 def scene_from_dict(d: Any) -> Scene:
@@ -172,8 +263,24 @@ def scene_from_dict(d: Any) -> Scene:
             raise InputError(f"scene.size must be an integer in {MIN_SCENE_SIZE}..{MAX_SCENE_SIZE}, got {size_raw!r}")
         size = int(size_raw)
     name = _name("scene.name", d.get("name", "scene"))
+    lighting = d.get("lighting", "static")
+    if lighting not in LIGHTING_MODES:
+        raise InputError(f"scene.lighting must be one of {list(LIGHTING_MODES)}, got {lighting!r}")
+    edits_raw = d.get("material_edits", False)
+    if isinstance(edits_raw, bool):
+        edits = tuple(names) if edits_raw else ()
+    elif isinstance(edits_raw, list) and all(isinstance(x, str) for x in edits_raw):
+        missing = sorted(set(edits_raw) - set(names))
+        if missing:
+            raise InputError(f"scene.material_edits names no object {missing[0]!r}; objects are {names}")
+        edits = tuple(x for x in names if x in edits_raw)
+    else:
+        raise InputError(f"scene.material_edits must be true, false or a list of object names, got {edits_raw!r}")
+    fb_raw = d.get("frame_budget_ms")
+    frame_budget = None if fb_raw is None else _number("scene.frame_budget_ms", fb_raw, lo=0.0,
+                                                       hi=MAX_FRAME_BUDGET_MS, hi_open=False)
     return Scene(environment=env.strip(), objects=objects, epsilon=epsilon, time_budget_s=budget, size=size,
-                 name=name)
+                 name=name, lighting=str(lighting), material_edits=edits, frame_budget_ms=frame_budget)
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -186,7 +293,10 @@ def load_scene(path: str | Path) -> Scene:
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"scene {p.name} is not valid JSON ({exc})") from None
     scene = scene_from_dict(data)
+    base = p.resolve().parent
     env = Path(scene.environment)
     if not env.is_absolute():
-        env = p.resolve().parent / env
-    return replace(scene, environment=str(env))
+        env = base / env
+    objects = tuple(o if o.mesh is None or Path(o.mesh).is_absolute() else replace(o, mesh=str(base / o.mesh))
+                    for o in scene.objects)
+    return replace(scene, environment=str(env), objects=objects)

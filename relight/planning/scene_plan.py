@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -37,8 +37,14 @@ from relight.planning.report import (
     ObjectPlan,
     ScenePlan,
 )
+from relight.orders import order_for_tolerance
+from relight.planning.assign import Context, choose_all, lobe_parts, vertices_of
+from relight.planning.predict import PRED_ORDER
 from relight.planning.scene import Scene
 from relight.planning.shadows import shadow_plan
+
+#: Representations computed by seed 000's pipeline (``run_plan``'s SHRM path).
+SEED000 = frozenset({"irradiance", "reflection_map", "shrm_q0", "shrm", "diffuse_transfer"})
 
 FloatArray = NDArray[np.float64]
 
@@ -58,6 +64,8 @@ class Plan:
     lighting: Any = None  # relight.prefilter.LightingSpectrum, shared with run_plan
     choices: dict[str, LobeChoice] = field(default_factory=dict)
     keys: dict[str, str] = field(default_factory=dict)  # computation id -> lobe key of ``choices``
+    meshes: dict[str, Any] = field(default_factory=dict)  # mesh reference -> relight.mesh.TriangleMesh
+    pixels: Any = None  # the environment (H, W, 3) float64, for the planner-v2 jobs the run executes
 
 
 def _pixels(pixels: NDArray[np.floating]) -> FloatArray:
@@ -91,29 +99,73 @@ def _features(choices: dict[str, LobeChoice], computations: dict[tuple[str, int]
     )
 
 
-def _plan_at(
-    scene: Scene, pixels: FloatArray, epsilon: float, cal: costmodel.Calibration, lighting: Any = None
-) -> Plan:
-    """Plan every object at one tolerance (module docstring)."""
-    from relight.brdf.spec import parse_brdf
-    from relight.prefilter import project_lighting, size_for_order
+def material_parts(material: Any) -> tuple[list[Any], list[Any]]:
+    """The isotropic lobes of a material (``relight.shrm.brdf_lobes``) and its anisotropic terms (tangent-frame
+    BRDFs, ``relight.brdf.frame.FrameBRDF``)."""
+    from relight.brdf.frame import FrameSum, LobeAdapter
+    from relight.brdf.spec import parse_brdf, parse_frame_brdf
+    from relight.errors import InputError
     from relight.shrm import brdf_lobes
 
+    try:
+        return brdf_lobes(parse_brdf(material)), []
+    except InputError:
+        f = parse_frame_brdf(material)
+    terms = f.terms if isinstance(f, FrameSum) else [f]
+    return [t.lobe for t in terms if isinstance(t, LobeAdapter)], [t for t in terms if not isinstance(t, LobeAdapter)]
+
+
+def resolve_meshes(scene: Scene, meshes: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Every mesh the scene's objects name: given (the service passes uploaded meshes by id), a sample shape
+    (``relight.mesh.sample_mesh``) or a mesh file (``relight.mesh.load_mesh``)."""
+    from pathlib import Path
+
+    from relight.errors import InputError
+    from relight.mesh import load_mesh, sample_mesh
+
+    out: dict[str, Any] = {}
+    for o in scene.objects:
+        ref = o.mesh_ref
+        if ref is None or ref in out:
+            continue
+        if meshes is not None and ref in meshes:
+            out[ref] = meshes[ref]
+        elif o.mesh is None:
+            out[ref] = sample_mesh(ref)
+        elif Path(ref).is_file():
+            out[ref] = load_mesh(ref)
+        else:
+            raise InputError(f"objects {o.name!r}: mesh {ref!r} is neither a given mesh nor a readable mesh file")
+    return out
+
+
+def _plan_at(
+    scene: Scene, pixels: FloatArray, epsilon: float, cal: costmodel.Calibration, lighting: Any = None,
+    meshes: dict[str, Any] | None = None,
+) -> Plan:
+    """Plan every object at one tolerance (module docstring)."""
+    from relight.prefilter import project_lighting, size_for_order
+
+    meshes = meshes if meshes is not None else resolve_meshes(scene)
     h, w = pixels.shape[:2]
     f_cap = h - 1
     choices: dict[str, LobeChoice] = {}
     obj_lobes: list[list[str]] = []
+    obj_aniso: list[list[Any]] = []
     t_brdf = time.perf_counter()
     for obj in scene.objects:
         keys = []
-        for lobe in brdf_lobes(parse_brdf(obj.material)):
+        iso, aniso = material_parts(obj.material)
+        for lobe in iso:
             key = lobe_key(lobe)
             if key not in choices:
                 choices[key] = choose(lobe, epsilon)
             keys.append(key)
         obj_lobes.append(keys)
+        obj_aniso.append(aniso)
     t_brdf = time.perf_counter() - t_brdf
-    f_proj = min(max(c.f_rho for c in choices.values()), f_cap)
+    # the lighting to the largest lobe order, and at least to the SH-table predictions' bands (planner v2)
+    f_proj = min(max([c.f_rho for c in choices.values()] + [PRED_ORDER + 1]), f_cap)
     t_proj = 0.0
     if lighting is None or lighting.lmax < f_proj:
         t0 = time.perf_counter()
@@ -128,8 +180,12 @@ def _plan_at(
 
     computations: dict[tuple[str, int], Computation] = {}
     objects: list[ObjectPlan] = []
+    obj_comps: list[list[Computation]] = []
+    obj_shadows: list[Any] = []
+    sizes: dict[str, int] = {}
+    vertices = vertices_of(meshes)
     for obj, lobe_keys in zip(scene.objects, obj_lobes, strict=True):
-        s = scene.size if scene.size is not None else size_for_order(max(lobe_info[k][0] for k in lobe_keys))
+        s = scene.size if scene.size is not None else size_for_order(max([lobe_info[k][0] for k in lobe_keys] + [2]))
         comps = []
         for key in lobe_keys:
             c = choices[key]
@@ -146,22 +202,62 @@ def _plan_at(
                 )
             computations[ck].shared_by.append(obj.name)
             comps.append(computations[ck])
+        sizes[obj.name] = s
+        shadows = shadow_plan(obj, comps, epsilon, vertices.get(obj.mesh_ref or "", 0))
+        obj_comps.append(comps)
+        obj_shadows.append(shadows)
+
+    # planner v2 (relight.planning.assign): a representation per lobe, shared jobs, the frame budget
+    ids = {c.id: key for (key, _), c in computations.items()}
+    comp_seconds = {c.id: cal.predict(_comp_features(choices[ids[c.id]], c)).seconds
+                    for c in computations.values()}
+    band = lighting.band_energy()
+    f_l = order_for_tolerance(band, lighting.total_energy, epsilon)
+    ctx = Context(scene=scene, epsilon=epsilon, band_energy=band, total_energy=lighting.total_energy, height=h,
+                  width=w, vertices=vertices, comp_seconds=comp_seconds,
+                  shadow_plans={o.name: sp for o, sp in zip(scene.objects, obj_shadows, strict=True)
+                                if sp is not None}, f_l=f_l)
+    parts = [p for obj, comps, aniso in zip(scene.objects, obj_comps, obj_aniso, strict=True)
+             for p in lobe_parts(obj, comps, aniso, choices, ids, ctx)]
+    jobs, frame = choose_all(parts, ctx)
+    reps = {o.name: [p.chosen for p in parts if p.obj.name == o.name and p.chosen is not None]
+            for o in scene.objects}
+    used = {r.computation for rr in reps.values() for r in rr if r.computation is not None
+            and r.representation in SEED000}
+    for c in computations.values():  # a lobe drawn by another representation computes no seed-000 maps
+        if c.id not in used:
+            c.shared_by.clear()
+    computations = {k: c for k, c in computations.items() if c.id in used}
+    for obj, comps, shadows in zip(scene.objects, obj_comps, obj_shadows, strict=True):
+        comps = [c for c in comps if c.id in used]
+        if shadows is not None and not any(r.representation == "diffuse_transfer" for r in reps[obj.name]):
+            shadows = None
         viewer = viewer_of(obj, comps, epsilon)
-        shadows = shadow_plan(obj, comps, epsilon)
-        worst = max(comps, key=lambda c: c.predicted.get("epsilon_min_of_errors", 0.0))
+        errs = [r.predicted_error for r in reps[obj.name]]
+        worst = ErrorSummary.of(max(comps, key=lambda c: c.predicted.get("epsilon_min_of_errors", 0.0)).predicted
+                                if comps else {})
+        worst = replace(worst, rms_min_of_errors=max([worst.rms_min_of_errors or 0.0, *errs]))
         objects.append(ObjectPlan(
             **obj.as_dict(), view_dependent=viewer.view_dependent, viewer=viewer.viewer, shrm=viewer.shrm,
             view_spread_deg=viewer.view_spread_deg, p_delta=viewer.p_delta,
-            near_below_distance=viewer.near_below_distance, output_rows=s, computations=[c.id for c in comps],
-            predicted_error=ErrorSummary.of(worst.predicted), effects=effects(obj, comps, viewer, epsilon, shadows),
-            shadows=shadows,
+            near_below_distance=viewer.near_below_distance, output_rows=sizes[obj.name],
+            computations=[c.id for c in comps], predicted_error=worst,
+            effects=effects(obj, comps, viewer, epsilon, shadows, reps[obj.name]), shadows=shadows,
+            shadows_requested=obj.shadows, interreflections=obj.interreflections, mesh=obj.mesh,
+            tangent=obj.tangent, material_edited=scene.edited(obj.name), representations=reps[obj.name],
+            per_frame_ms=frame.per_object_ms.get(obj.name, 0.0),
         ))
 
-    pred = cal.predict(_features(choices, computations, objects, h, w, f_proj))
-    shadow_s = sum(o.shadows.predicted_seconds for o in objects if o.shadows is not None)
-    if shadow_s:  # ray casting is outside the cost model's features: its own rate (relight.visibility.predict)
-        pred = replace(pred, seconds=pred.seconds + shadow_s, stages={**pred.stages, "shadows": shadow_s})
-    worst_obj = max(objects, key=lambda o: o.predicted_error.epsilon_min_of_errors or 0.0)
+    pred = cal.predict(_features({k: c for k, c in choices.items() if k in {ids[i] for i in used}}, computations,
+                                 objects, h, w, f_proj))
+    extra: dict[str, float] = {}
+    for j in jobs.values():
+        if j.kind != "shrm" and j.executed:  # ray casting, fits, chains, tables: relight.planning.costs
+            stage = "shadows" if j.kind == "diffuse_transfer" else j.kind
+            extra[stage] = extra.get(stage, 0.0) + j.predicted_seconds
+    if extra:
+        pred = replace(pred, seconds=pred.seconds + sum(extra.values()), stages={**pred.stages, **extra})
+    worst_obj = max(objects, key=lambda o: o.predicted_error.rms_min_of_errors or 0.0)
     report = ScenePlan(
         relight_version=__version__, scene=scene.name, environment=scene.environment, epsilon=epsilon,
         time_budget_s=scene.time_budget_s, mode="tolerance" if scene.time_budget_s is None else "time_budget",
@@ -169,10 +265,22 @@ def _plan_at(
                               shared_by=[o.name for o in scene.objects]),
         computations=list(computations.values()), objects=objects, brdf_seconds=t_brdf,
         predicted_seconds=pred.seconds, predicted_stages=pred.stages, predicted_error=worst_obj.predicted_error,
-        cost_model=CostModelInfo(calibrated=cal.calibrated, key=cal.key),
+        cost_model=CostModelInfo(calibrated=cal.calibrated, key=cal.key), lighting_mode=scene.lighting,
+        jobs=list(jobs.values()), frame=frame,
     )
-    ids = {c.id: key for (key, _), c in computations.items()}
-    return Plan(scene=scene, report=report, lighting=lighting, choices=choices, keys=ids)
+    return Plan(scene=scene, report=report, lighting=lighting, choices=choices,
+                keys={i: k for i, k in ids.items() if i in used}, meshes=meshes, pixels=pixels)
+
+
+def _comp_features(c: LobeChoice, comp: Computation) -> dict[str, float]:
+    """Cost-model features of one seed-000 computation alone (its lobe's coefficients and its maps)."""
+    if c.structure == "radial":
+        probes = [(f, 0) for f in costmodel.radial_probes(c.lobe, c.f_rho, explicit=False)] + [(comp.F_B, 0)]
+        brdf = costmodel.brdf_features(c.lobe, c.f_rho, 0, explicit=False, probes=probes)
+    else:
+        brdf = costmodel.brdf_features(c.lobe, c.f_rho, c.p_rho, explicit=False, search="lpq", probes=c.probes)
+    return costmodel.add_features(brdf, costmodel.synthesis_features(
+        comp.size, comp.F_B, *costmodel.synthesis_counts(comp.structure, comp.P_B, comp.F_B)))
 
 
 def plan_scene(
