@@ -66,6 +66,7 @@ from relight.contract.scenes import (
     SceneCreate,
     SceneName,
     SceneObjectCreate,
+    TangentField,
     ScenePublic,
     Shape,
 )
@@ -114,6 +115,7 @@ __all__ = [
     "SceneCreate",
     "SceneName",
     "SceneObjectCreate",
+    "TangentField",
     "ScenePublic",
     "Shape",
     "ShrmCreate",

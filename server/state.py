@@ -87,7 +87,7 @@ class Services:
         meshes = MeshService(settings, db, store, cluster, metrics)
         shrms = ShrmService(jobs, plans, envmaps, store, cluster)
         self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs, shrms=shrms,
-                   tradeoffs=TradeoffService(jobs, envmaps, brdfs), scenes=SceneService(jobs, envmaps, brdfs),
+                   tradeoffs=TradeoffService(jobs, envmaps, brdfs), scenes=SceneService(jobs, envmaps, brdfs, meshes),
                    render=RenderService(settings, store, cluster, envmaps, shrms, meshes), meshes=meshes,
                    visibility=VisibilityService(jobs, meshes, store), calibration=calibration)
         jobs.start()

@@ -89,7 +89,8 @@ def run_scene(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
     ctx.report("loading", 0.5)
     px = _pixels(store, scene.environment, ctx.max_pixels, None)
     ctx.report("planning", 0.55)
-    plan = plan_scene(scene, px)
+    meshes = _uploaded_meshes(store, job.get("meshes") or {})
+    plan = plan_scene(scene, px, meshes=meshes)
     files: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="relight-scene-") as tmp:
         ctx.report("running", 0.6)
@@ -106,6 +107,16 @@ def run_scene(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = _jsonable({"plan": from_core(plan.report.to_json(), store),
                                      "result": from_core(result.to_json(), store), "files": files})
     return out
+
+
+def _uploaded_meshes(store: BlobStore, geometry: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The scene's uploaded meshes by id, from their stored ``geometry.bin`` (``relight.mesh.geometry``: exactly the
+    vertices the viewer draws and the transfer is computed for)."""
+    from relight.mesh import geometry as mesh_geometry
+
+    return {mesh_id: mesh_geometry.from_bytes(store.read(g["sha256"]), int(g["vertices"]), int(g["faces"]),
+                                              source=f"geometry {g['sha256']}")
+            for mesh_id, g in geometry.items()}
 
 
 def _add_texture(store: BlobStore, shrm_path: Path, entry: ObjectResult,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -25,6 +26,9 @@ from relight.planning import costs, predict
 from relight.planning.report import Alternative, Computation, FramePlan, LobeRepresentation, PlannedJob, ShadowPlan
 from relight.planning.represent import SEED, VISIBILITY_ORDER, Candidate, LobeCase, candidates, per_lobe_note
 from relight.planning.scene import Scene, SceneObject
+
+#: Representations computed by seed 000's pipeline (``run_plan``'s SHRM path; the transfer uses the irradiance lobe).
+SEED000 = frozenset({"irradiance", "reflection_map", "shrm_q0", "shrm", "diffuse_transfer"})
 
 #: SH-table view resolution the plan asks for: 128 texels (the paper's; a 1-D table of 128 elevations for isotropic
 #: lobes) and 64 x 64 views for anisotropic ones (the run's cost; issue 15's 128 x 128 remains `relight sh-table`'s).
@@ -64,8 +68,10 @@ class Context:
 
 
 def rays_for(relative_error: float, coefficient_norm: float) -> int:
-    """Smallest power of two of rays in [MIN_RAYS, MAX_RAYS] with ``coefficient_norm / sqrt(R) <= relative_error``
-    (the i.i.d. bound of ``relight.visibility.predict`` relative to an unoccluded transfer)."""
+    """Smallest power of two of rays in [MIN_RAYS, MAX_RAYS] with ``coefficient_norm / sqrt(R) <= relative_error``.
+    ``relight.visibility.predict``'s i.i.d. bounds relative to an unoccluded vertex are ``(F+1) / sqrt(R)`` for the
+    visibility (``(F+1) sqrt(4 pi / R)`` against ``|v| = sqrt(4 pi)``) and for the shadow matrix (``(F+1)^2 /
+    sqrt(R)`` against ``|I| = F + 1``), so ``coefficient_norm = F + 1`` for both."""
     need = (coefficient_norm / max(relative_error, 1e-12)) ** 2
     return int(min(MAX_RAYS, max(MIN_RAYS, 1 << max(0, math.ceil(math.log2(max(need, 1.0)))))))
 
@@ -120,7 +126,7 @@ def evaluate(part: Part, cand: Candidate, ctx: Context) -> tuple[LobeRepresentat
                          costs.table_features(res if part.isotropic else res * res, nodes, f)))
         terms.update({"F": f, "coefficients": n, "resolution": res, "anisotropic": part.case.anisotropic})
         if rep == "prt_matrix":
-            rays = rays_for(math.sqrt(eps) / 2.0, float(f + 1))
+            rays = rays_for(math.sqrt(eps), float(f + 1))
             mc = (f + 1) / math.sqrt(rays)
             err = math.sqrt(err**2 + mc**2)
             parts["monte_carlo"] = mc
@@ -141,7 +147,7 @@ def evaluate(part: Part, cand: Candidate, ctx: Context) -> tuple[LobeRepresentat
                           "levels": len(sig)}, costs.chain_features(ctx.height, ctx.width, orders, rows)))
         if cand.shadows != "none":
             kind = "approximate"
-            rays = rays_for(math.sqrt(eps), float(VISIBILITY_ORDER + 1) * math.sqrt(4.0 * math.pi))
+            rays = rays_for(math.sqrt(eps), float(VISIBILITY_ORDER + 1))
             terms.update({"visibility_coefficients": (VISIBILITY_ORDER + 1) ** 2, "visibility_rays": rays})
             jobs.append(_job("visibility", f"{mesh}:{VISIBILITY_ORDER}:{rays}",
                              {"mesh": mesh, "order": VISIBILITY_ORDER, "rays": rays},
@@ -152,7 +158,7 @@ def evaluate(part: Part, cand: Candidate, ctx: Context) -> tuple[LobeRepresentat
         k = int(terms["K"])
         f_n = min(ctx.f_l if ctx.f_l is not None else predict.F_MAX, predict.F_MAX)
         eps_l = float(uncaptured(ctx.band_energy, ctx.total_energy)[min(f_n, len(ctx.band_energy) - 1)])
-        rays = rays_for(math.sqrt(eps) / 2.0, float(f_n + 1))
+        rays = rays_for(math.sqrt(eps), float(f_n + 1))
         mc = (f_n + 1) / math.sqrt(rays)
         err = math.sqrt(eps + eps_l + mc**2)
         parts = {"uncaptured_singular_energy": math.sqrt(eps), "lighting_order": math.sqrt(eps_l), "monte_carlo": mc}
@@ -170,7 +176,7 @@ def evaluate(part: Part, cand: Candidate, ctx: Context) -> tuple[LobeRepresentat
         shadows=cand.shadows, predicted_error=float(err), error_kind=kind, error_parts=parts,
         predicted_precompute_s=float(seconds), per_frame_ms=costs.Cost({}, frame).frame_ms(),
         jobs=[j[1] for j in jobs], computation=c.id if c is not None else None, executed=cand.runnable,
-        not_executed_reason=cand.not_run_reason, note=per_lobe_note(part.case, cand, float(err), eps),
+        not_executed_reason=cand.not_run_reason, note=per_lobe_note(cand, terms, float(err), eps),
     )
     return entry, jobs
 
@@ -257,21 +263,71 @@ def vertices_of(meshes: dict[str, Any]) -> dict[str, int]:
     return {k: int(np.asarray(m.positions).shape[0]) for k, m in meshes.items()}
 
 
-def lobe_parts(obj: SceneObject, comps: list[Computation], aniso: list[Any], choices: dict[str, Any],
-               ids: dict[str, str], ctx: Context) -> list[Part]:
-    """The parts of one object: its isotropic lobes (with their seed-000 computations) and anisotropic terms."""
+
+def rough_order(lobe: Any, epsilon: float) -> int:
+    """The lobe's order for the tolerance without App. C's search: exact for radial lobes
+    (``spectrum_for_tolerance``), the half-angle curve's l* at ``1 - epsilon`` for the others (seed 004 §4's recipe,
+    ``relight.factor_predict``); used only to decide whether SH lighting to ``F_MAX`` is exact."""
+    from relight.brdf.base import RadialLobe
+    from relight.brdf.coefficients import spectrum_for_tolerance
+
+    if isinstance(lobe, RadialLobe):
+        return int(spectrum_for_tolerance(lobe, epsilon)[1])
+    return _half_angle_order(predict.spec_key(lobe.spec()), round(1.0 - epsilon, 12))
+
+
+@lru_cache(maxsize=256)
+def _half_angle_order(key: str, fraction: float) -> int:
+    import json
+
+    from relight.brdf.spec import parse_brdf
+    from relight.factor_predict import half_angle_terms
+
+    return int(half_angle_terms(parse_brdf(json.loads(key)), thresholds=(fraction,))["l_star"][fraction])
+
+
+def iso_case(obj: SceneObject, lobe: Any, scene: Scene, epsilon: float, f_l: int | None, f_rho: int | None = None,
+             inout_k: int | None = None) -> LobeCase:
+    """The rules' view of one isotropic lobe of ``obj`` (``f_rho``: App. C's order when searched)."""
+    from relight.planning.lobes import representation_of
+
+    _, structure, _ = representation_of(lobe)
+    return LobeCase(kind=lobe.kind, lambertian=lobe.kind == "lambert", anisotropic=False, radial=structure == "radial",
+                    azimuthal=structure == "azimuthal", f_rho=rough_order(lobe, epsilon) if f_rho is None else f_rho,
+                    f_l=f_l, shadows=obj.shadowed, interreflections=obj.interreflections, lighting=scene.lighting,
+                    edited=scene.edited(obj.name), inout_k=inout_k)
+
+
+def needs_seed000(case: LobeCase) -> bool:
+    """Whether the rules' first choice for this lobe is a seed-000 computation (App. C's order search needed)."""
+    return candidates(case)[0].representation in SEED000
+
+
+def lobe_parts(obj: SceneObject, comps: list[Computation], others: list[Any], aniso: list[Any],
+               ctx: Context) -> list[Part]:
+    """The parts of one object: its isotropic lobes with seed-000 computations, those the rules send elsewhere
+    (``others``: no order search), and its anisotropic terms."""
     out: list[Part] = []
     shadowed = obj.shadowed
+    eps = ctx.epsilon
+
+    def k_of(kind: str, spec: Any) -> int | None:
+        return predict.inout_terms(spec, eps)[0] if shadowed != "none" and kind != "lambert" else None
+
     for c in comps:
-        lamb = c.kind == "lambert"
-        k = None
-        if shadowed != "none" and not lamb:
-            k = predict.inout_terms(c.lobe, ctx.epsilon)[0]
-        case = LobeCase(kind=c.kind, lambertian=lamb, anisotropic=False, radial=c.structure == "radial",
-                        azimuthal=c.structure == "azimuthal", f_rho=c.F_rho, f_l=ctx.f_l, shadows=shadowed,
-                        interreflections=obj.interreflections, lighting=ctx.scene.lighting,
-                        edited=ctx.scene.edited(obj.name), inout_k=k)
+        case = LobeCase(kind=c.kind, lambertian=c.kind == "lambert", anisotropic=False,
+                        radial=c.structure == "radial", azimuthal=c.structure == "azimuthal", f_rho=c.F_rho,
+                        f_l=ctx.f_l, shadows=shadowed, interreflections=obj.interreflections,
+                        lighting=ctx.scene.lighting, edited=ctx.scene.edited(obj.name), inout_k=k_of(c.kind, c.lobe))
         out.append(Part(obj=obj, case=case, spec=c.lobe, isotropic=True, comp=c, options=candidates(case)))
+    for lobe in others:
+        spec = lobe.spec()
+        case = iso_case(obj, lobe, ctx.scene, eps, ctx.f_l, inout_k=k_of(lobe.kind, spec))
+        opts = [o if o.representation not in SEED000 else Candidate(
+            o.representation, o.reason, o.terms, o.shadows, False,
+            "App. C's order search is not run for a lobe the rules send to another representation") for o in
+            candidates(case)]
+        out.append(Part(obj=obj, case=case, spec=spec, isotropic=True, comp=None, options=opts))
     for t in aniso:
         case = LobeCase(kind=t.kind, lambertian=False, anisotropic=True, radial=False, azimuthal=False, f_rho=None,
                         f_l=ctx.f_l, shadows=shadowed, interreflections=obj.interreflections,

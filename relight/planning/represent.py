@@ -159,9 +159,9 @@ def _seed000(case: LobeCase) -> Candidate:
     return Candidate("shrm", "general isotropic lobe: SHRM (seed 000 §4), exact to the tolerance")
 
 
-def per_lobe_note(case: LobeCase, chosen: Candidate, error: float, epsilon: float) -> str | None:
+def per_lobe_note(chosen: Candidate, terms: dict[str, Any], error: float, epsilon: float) -> str | None:
     """The plan's remark when a lobe is blurred by its order (seed 003's cap) or its error exceeds sqrt(epsilon)."""
     if error > math.sqrt(epsilon) and chosen.representation in ("sh_table", "prt_matrix"):
-        return (f"sharp lobe blurred to order F = {chosen.terms.get('F')}: predicted relative RMS {error:.3g} "
+        return (f"sharp lobe blurred to order F = {terms.get('F')}: predicted relative RMS {error:.3g} "
                 f"> sqrt(epsilon) = {math.sqrt(epsilon):.3g}")
     return None

@@ -38,13 +38,10 @@ from relight.planning.report import (
     ScenePlan,
 )
 from relight.orders import order_for_tolerance
-from relight.planning.assign import Context, choose_all, lobe_parts, vertices_of
+from relight.planning.assign import SEED000, Context, choose_all, iso_case, lobe_parts, needs_seed000, vertices_of
 from relight.planning.predict import PRED_ORDER
 from relight.planning.scene import Scene
 from relight.planning.shadows import shadow_plan
-
-#: Representations computed by seed 000's pipeline (``run_plan``'s SHRM path).
-SEED000 = frozenset({"irradiance", "reflection_map", "shrm_q0", "shrm", "diffuse_transfer"})
 
 FloatArray = NDArray[np.float64]
 
@@ -151,26 +148,37 @@ def _plan_at(
     f_cap = h - 1
     choices: dict[str, LobeChoice] = {}
     obj_lobes: list[list[str]] = []
+    obj_others: list[list[Any]] = []
     obj_aniso: list[list[Any]] = []
+    # the lighting at least to the SH-table predictions' bands (planner v2), later to the largest lobe order
+    f_min = min(PRED_ORDER + 1, f_cap)
+    t_proj = 0.0
+    if lighting is None or lighting.lmax < f_min:
+        t0 = time.perf_counter()
+        lighting = project_lighting(pixels, f_min)
+        t_proj = time.perf_counter() - t0
+    f_l0 = order_for_tolerance(lighting.band_energy(), lighting.total_energy, epsilon)
     t_brdf = time.perf_counter()
     for obj in scene.objects:
-        keys = []
+        keys, others = [], []
         iso, aniso = material_parts(obj.material)
         for lobe in iso:
+            if not needs_seed000(iso_case(obj, lobe, scene, epsilon, f_l0)):
+                others.append(lobe)  # drawn by another representation: no App. C order search
+                continue
             key = lobe_key(lobe)
             if key not in choices:
                 choices[key] = choose(lobe, epsilon)
             keys.append(key)
         obj_lobes.append(keys)
+        obj_others.append(others)
         obj_aniso.append(aniso)
     t_brdf = time.perf_counter() - t_brdf
-    # the lighting to the largest lobe order, and at least to the SH-table predictions' bands (planner v2)
-    f_proj = min(max([c.f_rho for c in choices.values()] + [PRED_ORDER + 1]), f_cap)
-    t_proj = 0.0
-    if lighting is None or lighting.lmax < f_proj:
+    f_proj = min(max([c.f_rho for c in choices.values()] + [f_min]), f_cap)
+    if lighting.lmax < f_proj:
         t0 = time.perf_counter()
         lighting = project_lighting(pixels, f_proj)
-        t_proj = time.perf_counter() - t0
+        t_proj += time.perf_counter() - t0
 
     lobe_info: dict[str, tuple[int, int | None, dict[str, float]]] = {}
     for key, c in choices.items():
@@ -217,8 +225,8 @@ def _plan_at(
                   width=w, vertices=vertices, comp_seconds=comp_seconds,
                   shadow_plans={o.name: sp for o, sp in zip(scene.objects, obj_shadows, strict=True)
                                 if sp is not None}, f_l=f_l)
-    parts = [p for obj, comps, aniso in zip(scene.objects, obj_comps, obj_aniso, strict=True)
-             for p in lobe_parts(obj, comps, aniso, choices, ids, ctx)]
+    parts = [p for obj, comps, others, aniso in zip(scene.objects, obj_comps, obj_others, obj_aniso, strict=True)
+             for p in lobe_parts(obj, comps, others, aniso, ctx)]
     jobs, frame = choose_all(parts, ctx)
     reps = {o.name: [p.chosen for p in parts if p.obj.name == o.name and p.chosen is not None]
             for o in scene.objects}
@@ -284,38 +292,39 @@ def _comp_features(c: LobeChoice, comp: Computation) -> dict[str, float]:
 
 
 def plan_scene(
-    scene: Scene, pixels: NDArray[np.floating], *, calibration: costmodel.Calibration | None = None
+    scene: Scene, pixels: NDArray[np.floating], *, calibration: costmodel.Calibration | None = None,
+    meshes: Mapping[str, Any] | None = None,
 ) -> Plan:
-    """Plan a scene for an environment map (H, W, 3): at its tolerance, or under its time budget."""
+    """Plan a scene for an environment map (H, W, 3): at its tolerance, or under its time budget. ``meshes``: the
+    uploaded meshes by the reference the objects give (sample shapes and mesh files are loaded here)."""
     px = _pixels(pixels)
     cal = calibration if calibration is not None else costmodel.load_calibration()
+    resolved = resolve_meshes(scene, meshes)
     if scene.time_budget_s is not None:
-        return plan_for_budget(scene, px, scene.time_budget_s, calibration=cal)
+        return plan_for_budget(scene, px, scene.time_budget_s, calibration=cal, meshes=resolved)
     assert scene.epsilon is not None
-    return _plan_at(scene, px, scene.epsilon, cal)
+    return _plan_at(scene, px, scene.epsilon, cal, meshes=resolved)
 
 
 def plan_for_budget(
     scene: Scene, pixels: NDArray[np.floating], budget_s: float, *, calibration: costmodel.Calibration | None = None,
-    ladder: Sequence[float] = BUDGET_LADDER,
+    ladder: Sequence[float] = BUDGET_LADDER, meshes: Mapping[str, Any] | None = None,
 ) -> Plan:
     """The most accurate plan on ``ladder`` whose predicted seconds fit ``budget_s`` (module docstring).
 
     Predicted time grows as the tolerance tightens; the ladder is walked from the loosest tolerance and stops at the
     first plan over budget. If even the loosest does not fit, that plan is returned with ``budget_met = False``.
     """
-    from relight.brdf.spec import parse_brdf
-    from relight.shrm import brdf_lobes
-
     px = _pixels(pixels)
     cal = calibration if calibration is not None else costmodel.load_calibration()
-    general = any(not lobe.radially_symmetric for o in scene.objects for lobe in brdf_lobes(parse_brdf(o.material)))
+    resolved = resolve_meshes(scene, meshes)
+    general = any(not lobe.radially_symmetric for o in scene.objects for lobe in material_parts(o.material)[0])
     steps = [e for e in ladder if not (general and e < SHRM_MIN_EPSILON)]
     tried: list[BudgetStep] = []
     best: Plan | None = None
     lighting = None
     for eps in steps:
-        plan = _plan_at(scene, px, eps, cal, lighting)
+        plan = _plan_at(scene, px, eps, cal, lighting, resolved)
         lighting = plan.lighting
         fits = plan.report.predicted_seconds <= budget_s
         tried.append(BudgetStep(epsilon=eps, predicted_seconds=plan.report.predicted_seconds, fits=fits,

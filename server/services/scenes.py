@@ -24,8 +24,10 @@ from relight.server.services.base import aware, in_thread, utc
 from relight.server.services.brdfs import BrdfService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.jobs import JobService
+from relight.server.services.meshes import MeshService
 from relight.server.services.kinds import JobKind, register
 from relight.worker.analysis import run_scene
+from relight.worker.blobs import DIGEST_RE
 from relight.worker.specs import to_core
 
 if TYPE_CHECKING:
@@ -50,11 +52,24 @@ SCENE = register(JobKind(
 ))
 
 
+def _frame_spec(spec: str) -> dict[str, Any]:
+    """The canonical spec of a material the BRDF registry refuses because it is anisotropic (a tangent-frame BRDF,
+    seed 003): strings only, never one that would make the core open a file."""
+    from relight.brdf.spec import parse_frame_brdf
+    from relight.worker.specs import check_client_string
+
+    check_client_string(spec)
+    out: dict[str, Any] = parse_frame_brdf(spec).spec()
+    return out
+
+
 class SceneService:
-    def __init__(self, jobs: JobService, envmaps: EnvmapService, brdfs: BrdfService) -> None:
+    def __init__(self, jobs: JobService, envmaps: EnvmapService, brdfs: BrdfService,
+                 meshes: MeshService | None = None) -> None:
         self.jobs = jobs
         self.envmaps = envmaps
         self.brdfs = brdfs
+        self.meshes = meshes
         self.store = jobs.store
 
     def public(self, row: Job) -> ScenePublic:
@@ -75,15 +90,38 @@ class SceneService:
         env = await self.envmaps.get(create.environment)
         await self.envmaps.input_ok(env.id)
         objects = []
+        geometry: dict[str, dict[str, Any]] = {}
         for k, obj in enumerate(create.objects):
-            brdf = await self.brdfs.resolve(obj.material)
-            item: dict[str, Any] = {"name": obj.name or f"object{k}", "shape": obj.shape, "size": obj.size,
-                                    "distance": obj.distance, "material": brdf.spec}
+            try:
+                material = (await self.brdfs.resolve(obj.material)).spec
+            except Unprocessable:
+                if not isinstance(obj.material, str) or DIGEST_RE.match(obj.material):
+                    raise
+                try:  # anisotropic materials are not registry BRDFs (SHRMs cannot represent them)
+                    material = await in_thread(_frame_spec, obj.material)
+                except InputError as exc:
+                    raise Unprocessable(f"objects[{k}].material: {exc}") from None
+            item: dict[str, Any] = {"name": obj.name or f"object{k}", "size": obj.size, "distance": obj.distance,
+                                    "material": material, "shadows": obj.shadows,
+                                    "interreflections": obj.interreflections}
+            if obj.mesh is not None:
+                if self.meshes is None:
+                    raise Unprocessable("this server has no mesh service")
+                mesh = await self.meshes.get(obj.mesh)  # 404 for an unknown mesh
+                await self.meshes.geometry(obj.mesh)  # decoded again first if the stored geometry is gone
+                item["mesh"] = mesh.id
+                geometry[mesh.id] = {"sha256": mesh.geometry["sha256"], "vertices": mesh.vertices,
+                                     "faces": mesh.faces}
+            else:
+                item["shape"] = obj.shape or "sphere"
             if obj.view is not None:
                 item["view"] = obj.view
+            if obj.tangent is not None:
+                item["tangent"] = obj.tangent.model_dump(mode="json", exclude_none=True)
             objects.append(item)
         scene = {"name": create.name, "environment": env.id, "objects": objects, "epsilon": create.epsilon,
-                 "time_budget_s": create.time_budget_s, "size": create.size}
+                 "time_budget_s": create.time_budget_s, "size": create.size, "lighting": create.lighting,
+                 "material_edits": create.material_edits, "frame_budget_ms": create.frame_budget_ms}
 
         def check() -> None:  # the core's validation is the authority (distances, names, materials)
             from relight.planning import scene_from_dict
@@ -95,7 +133,10 @@ class SceneService:
             await in_thread(check)
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
-        return {"scene": scene, "preview_size": create.preview_size}
+        out: dict[str, Any] = {"scene": scene, "preview_size": create.preview_size}
+        if geometry:  # the vertices each uploaded mesh's transfer is computed for (the job id names them)
+            out["meshes"] = geometry
+        return out
 
     async def submit(self, create: SceneCreate) -> tuple[ScenePublic, int]:
         row, status = await self.jobs.submit(SCENE, await self.canonical(create))
