@@ -66,9 +66,9 @@ from relight.contract.scenes import (
     SceneCreate,
     SceneName,
     SceneObjectCreate,
-    TangentField,
     ScenePublic,
     Shape,
+    TangentField,
 )
 from relight.contract.tradeoffs import (
     TradeoffCreate,

@@ -6,7 +6,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, Field, WithJsonSchema, model_validator
+from pydantic import AfterValidator, Field, StrictBool, WithJsonSchema, model_validator
 
 from relight.contract.base import Digest, JobState, Public, Strict, Vector3
 from relight.contract.resources import BrdfRef
@@ -70,7 +70,7 @@ class SceneObjectCreate(Strict):
     view: Vector3 | None = Field(None, description="direction from the object toward the viewer (default +Z)")
     shadows: Literal[SHADOW_MODES] = Field(  # type: ignore[valid-type]
         "auto", description="none, approximate (seed 002), exact (seeds 003/004) or auto (on for meshes)")
-    interreflections: bool = Field(False, description="simulate light bouncing within the object")
+    interreflections: StrictBool = Field(False, description="simulate light bouncing within the object")
     tangent: TangentField | None = Field(None, description="tangent field of anisotropic materials")
 
     @model_validator(mode="after")
@@ -96,7 +96,7 @@ class SceneCreate(Strict):
     preview_size: int = Field(0, ge=0, le=MAX_PREVIEW_SIZE, description="also render N x N sphere previews")
     lighting: Literal[LIGHTING_MODES] = Field(  # type: ignore[valid-type]
         "static", description="static, rotating or dynamic (new lighting every frame)")
-    material_edits: bool | list[SceneName] = Field(
+    material_edits: StrictBool | list[SceneName] = Field(
         False, description="materials edited live: true for all, or the names of the edited objects")
     frame_budget_ms: float | None = Field(None, gt=0.0, le=MAX_FRAME_BUDGET_MS,
                                           description="per-frame budget of the viewer, milliseconds")

@@ -48,16 +48,17 @@ PRECOMPUTE_FEATURES: Final = ("fit_nodes", "chain_px", "chain_leg", "table_evals
                               "ray_proj", "job_call")
 FRAME_FEATURES: Final = ("px_lookup", "px_madd", "vx_madd", "draw")
 
-#: Seconds per precompute feature unit, fitted by ``bench/planner_costs.py`` on the 2-core development machine.
+#: Seconds per precompute feature unit, fitted by ``bench/planner_costs.py --full`` on the 2-core development machine
+#: (under load; in-sample predicted / measured 0.6-1.3 except the smallest runs, whose fixed costs dominate).
 PRECOMPUTE_CONSTANTS: dict[str, float] = {
-    "fit_nodes": 2.4e-05,
-    "chain_px": 2.0e-09,
-    "chain_leg": 2.5e-09,
-    "table_evals": 6.0e-07,
-    "table_proj": 2.0e-09,
-    "rays": 4.0e-07,
-    "ray_proj": 3.0e-09,
-    "job_call": 2.0e-03,
+    "fit_nodes": 1.02e-04,
+    "chain_px": 9.97e-09,
+    "chain_leg": 0.0,
+    "table_evals": 7.01e-08,
+    "table_proj": 1.88e-10,
+    "rays": 4.55e-07,
+    "ray_proj": 4.79e-10,
+    "job_call": 1.30e-02,
 }
 #: Milliseconds per per-frame feature unit, fitted by ``bench/planner_costs.py`` (moderngl, llvmpipe).
 FRAME_CONSTANTS: dict[str, float] = {
@@ -85,8 +86,8 @@ class Cost:
 
 
 def screen_pixels(size: float, distance: float) -> float:
-    """Pixels an object of bounding radius ``size`` at ``distance`` covers on the viewer's canvas (:data:`CANVAS_PIXELS`,
-    :data:`FOV_DEG`): a disc of angular radius ``asin(r / d)``, at most the canvas."""
+    """Pixels an object of bounding radius ``size`` at ``distance`` covers on the viewer's canvas
+    (:data:`CANVAS_PIXELS`, :data:`FOV_DEG`): a disc of angular radius ``asin(r / d)``, at most the canvas."""
     half = math.radians(FOV_DEG) / 2.0
     ang = math.asin(min(1.0, size / distance))
     radius = min(1.0, math.tan(ang) / math.tan(half)) * math.sqrt(CANVAS_PIXELS) / 2.0
@@ -189,12 +190,12 @@ def calibrate_precompute(*, quick: bool = True, seed: int = 0) -> tuple[dict[str
 
     def timed(feats: dict[str, float], fn: Any) -> None:
         t0 = time.perf_counter()
-        out = fn()
+        fn()
         rows.append((feats, time.perf_counter() - t0))
-        return out
 
     ts = parse_brdf("torrance-sparrow:alpha=0.2,fresnel=none")
-    for elev, ng, npsi in ((4, 60, 10), (6, 80, 12)) if quick else ((4, 60, 10), (8, 80, 12), (15, 160, 24)):
+    ts_frame = parse_frame_brdf("torrance-sparrow:alpha=0.2,fresnel=none")
+    for elev, ng, npsi in ((4, 60, 10), (6, 80, 12)) if quick else ((4, 60, 10), (6, 80, 12), (8, 80, 12)):
         timed(fit_features(elev, ng * npsi, 3),
               lambda e=elev, g=ng, p=npsi: fit_gaussian_lobes(ts, FitSettings(elevations=e, n_gamma=g, n_psi=p,
                                                                               max_nfev=60)))
@@ -205,13 +206,16 @@ def calibrate_precompute(*, quick: bool = True, seed: int = 0) -> tuple[dict[str
                                [int(lv.orders["size"]) for lv in chain.levels])
         timed(feats, lambda p=px: build_chain(p, epsilon=1e-2))
     aniso = parse_frame_brdf("ashikhmin-shirley:nu=24,nv=8,rs=0.05,rd=0")
-    for brdf, res, order in ((ts, 32, 4), (aniso, 16, 4), (aniso, 24, 6)):
-        f = parse_frame_brdf(brdf.spec()) if not hasattr(brdf, "f_local") else brdf
+    tables = ((ts_frame, 32, 4), (aniso, 16, 4), (aniso, 24, 6)) + (() if quick else (
+        (ts_frame, 64, 8), (aniso, 16, 8), (aniso, 32, 4)))
+    for f, res, order in tables:
         nodes = int(lobe_quadrature(f.lobe_width)[1].size)
         views = res if f.isotropic else res * res
-        timed(table_features(views, nodes, order), lambda b=brdf, r=res, o=order: build_table(b, order=o, resolution=r))
+        timed(table_features(views, nodes, order), lambda b=f, r=res, o=order: build_table(b, order=o, resolution=r))
     mesh = sample_mesh("teapot")
-    for rays, order, kind in ((256, 3, "diffuse_transfer"), (512, 2, "shadow_matrix")):
+    transfers = ((256, 3, "diffuse_transfer"), (512, 2, "shadow_matrix")) + (() if quick else (
+        (1024, 3, "diffuse_transfer"), (256, 4, "shadow_matrix"), (256, 6, "shadow_matrix")))
+    for rays, order, kind in transfers:
         n = (order + 1) ** 2 * ((order + 1) ** 2 if kind == "shadow_matrix" else 1)
         timed(transfer_features(mesh.n_vertices, rays, n),
               lambda r=rays, o=order, k=kind: compute_transfer(mesh, TransferSettings(order=o, rays=r, kind=k)))

@@ -24,7 +24,6 @@ from relight.planning.scene import SceneObject
 from relight.planning.shadows import shadow_effects
 
 
-
 def view_spread(size: float, distance: float) -> float:
     """Full angle (radians) of the cone of view directions over an object: ``2 asin(r / d)``."""
     return 2.0 * math.asin(min(1.0, size / distance))

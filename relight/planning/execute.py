@@ -74,22 +74,19 @@ def irradiance_coefficients(plan: Plan, comp: Computation) -> list[list[float]]:
     return [[float(x) for x in row] for row in sh.to_real(b, f_b)]
 
 
-def compute_shadows(shadows: ShadowPlan) -> Any:
+def compute_shadows(shadows: ShadowPlan, mesh: Any, bounces: int = 0, albedo: float = 0.8) -> Any:
     """The diffuse transfer a plan states for an object (``relight.planning.shadows``): a
-    ``relight.visibility.TransferResult`` of its sample mesh."""
-    from relight.mesh import sample_mesh
+    ``relight.visibility.TransferResult`` of its mesh (a sample or an uploaded one, ``Plan.meshes``)."""
     from relight.visibility import TransferSettings, compute_transfer
 
-    settings = TransferSettings(order=shadows.order, rays=shadows.rays, kind="diffuse_transfer")
-    return compute_transfer(sample_mesh(shadows.mesh), settings)
+    settings = TransferSettings(order=shadows.order, rays=shadows.rays, kind="diffuse_transfer", bounces=bounces,
+                                albedo=albedo)
+    return compute_transfer(mesh, settings)
 
 
-def save_transfer(path: Path, mesh_name: str, transfer: Any) -> None:
+def save_transfer(path: Path, mesh: Any, transfer: Any) -> None:
     """``<object>.transfer.npz``: the arrays of ``relight visibility --out`` (positions, normals, faces, ao,
     visibility, transfer and their errors, manifest)."""
-    from relight.mesh import sample_mesh
-
-    mesh = sample_mesh(mesh_name)
     arrays: dict[str, Any] = {"positions": mesh.positions.astype(np.float32),
                               "normals": mesh.normals.astype(np.float32), "faces": mesh.faces.astype(np.int32),
                               **transfer.arrays, "manifest": np.array(json.dumps(jsonable(transfer.manifest)))}
@@ -135,7 +132,11 @@ def run_plan(
     maps: dict[str, FloatArray] = {}
     shrms: dict[str, Any] = {}
     transfers: dict[str, Any] = {}
+    transfers_done: dict[tuple[str, int, int, int, float], Any] = {}
     for o in rep.objects:
+        if not o.computations:  # every lobe drawn by a planner-v2 representation (relight.planning.run_jobs)
+            objects.append(ObjectResult(name=o.name, viewer=o.viewer, shrm=o.shrm, output_rows=o.output_rows))
+            continue
         shrm = SHRM(components=[comps[i] for i in o.computations], brdf=None, report={
             "representation": "shrm", "layout": "local", "relight_version": __version__,
             "predicted": o.predicted_error.to_json(), "scene": rep.scene, "object": o.name})
@@ -148,13 +149,21 @@ def run_plan(
                                                                    for c in irr})
         transfer_file = None
         if o.shadows is not None:
-            transfer = compute_shadows(o.shadows)
+            diffuse = [r for r in o.representations if r.representation == "diffuse_transfer"]
+            bounces = max([int(r.terms.get("bounces", 0)) for r in diffuse] + [0])
+            # interreflected light is scaled by the surface's albedo (grey: the mean of its channels)
+            albedo = float(np.mean(diffuse[0].lobe.get("albedo", 1.0))) if bounces and diffuse else 0.8
+            key = (o.shadows.mesh, o.shadows.order, o.shadows.rays, bounces, albedo)
+            transfer = transfers_done.get(key)
+            if transfer is None:  # one transfer per mesh, order, rays and bounces, shared by its objects
+                transfer = compute_shadows(o.shadows, plan.meshes[o.shadows.mesh], bounces, albedo)
+                transfers_done[key] = transfer
             entry = dataclasses.replace(entry, shadows={k: transfer.manifest[k] for k in (
                 "order", "rays", "vertices", "monte_carlo_error_rms", "seconds")})
             t = lap("shadows", t)
             if write and out is not None:
                 path = out / f"{o.name}.transfer.npz"
-                save_transfer(path, o.shadows.mesh, transfer)
+                save_transfer(path, plan.meshes[o.shadows.mesh], transfer)
                 transfer_file = path.name
             else:
                 transfers[o.name] = transfer

@@ -147,8 +147,8 @@ def chain_levels(height: int, epsilon: float, f_l: int | None) -> tuple[list[int
     (the orders capped by the lighting's F_L and the map's H - 1, as there), without building it."""
     from relight.brdf.coefficients import spectrum_for_tolerance
     from relight.brdf.vmf import VonMisesFisher
-    from relight.gaussian_chain import MIN_SIZE, chain_sigmas, default_sigma0
-    from relight.prefilter import size_for_order
+    from relight.gaussian_chain import chain_sigmas, default_sigma0
+    from relight.prefilter import MIN_SIZE, size_for_order
 
     sig = chain_sigmas(default_sigma0(height), CHAIN_RATIO)
     orders, rows = [], []

@@ -121,7 +121,7 @@ def candidates(case: LobeCase) -> list[Candidate]:
                      "002 §5.1)"), Candidate(table, f"fallback: SH table at order {F_MAX} (blurred)", {"F": F_MAX},
                                              table_shadows)]
     if shadowed:
-        out: list[Candidate] = []
+        out = []
         if case.shadows != "approximate":
             k = case.inout_k or 0
             run = inout_available()

@@ -26,8 +26,11 @@ from numpy.typing import NDArray
 
 from relight import __version__, costmodel
 from relight.jsonable import jsonable
+from relight.orders import order_for_tolerance
+from relight.planning.assign import SEED000, Context, choose_all, iso_case, lobe_parts, needs_seed000, vertices_of
 from relight.planning.effects import effects, viewer_of
 from relight.planning.lobes import LobeChoice, choose, lobe_key, predicted_radial, predicted_shrm
+from relight.planning.predict import PRED_ORDER
 from relight.planning.report import (
     BudgetStep,
     Computation,
@@ -37,9 +40,6 @@ from relight.planning.report import (
     ObjectPlan,
     ScenePlan,
 )
-from relight.orders import order_for_tolerance
-from relight.planning.assign import SEED000, Context, choose_all, iso_case, lobe_parts, needs_seed000, vertices_of
-from relight.planning.predict import PRED_ORDER
 from relight.planning.scene import Scene
 from relight.planning.shadows import shadow_plan
 
@@ -150,20 +150,13 @@ def _plan_at(
     obj_lobes: list[list[str]] = []
     obj_others: list[list[Any]] = []
     obj_aniso: list[list[Any]] = []
-    # the lighting at least to the SH-table predictions' bands (planner v2), later to the largest lobe order
-    f_min = min(PRED_ORDER + 1, f_cap)
-    t_proj = 0.0
-    if lighting is None or lighting.lmax < f_min:
-        t0 = time.perf_counter()
-        lighting = project_lighting(pixels, f_min)
-        t_proj = time.perf_counter() - t0
-    f_l0 = order_for_tolerance(lighting.band_energy(), lighting.total_energy, epsilon)
     t_brdf = time.perf_counter()
     for obj in scene.objects:
         keys, others = [], []
         iso, aniso = material_parts(obj.material)
         for lobe in iso:
-            if not needs_seed000(iso_case(obj, lobe, scene, epsilon, f_l0)):
+            # whether seed 000 draws the lobe does not depend on the lighting's order (represent.candidates)
+            if not needs_seed000(iso_case(obj, lobe, scene, epsilon, None)):
                 others.append(lobe)  # drawn by another representation: no App. C order search
                 continue
             key = lobe_key(lobe)
@@ -174,11 +167,13 @@ def _plan_at(
         obj_others.append(others)
         obj_aniso.append(aniso)
     t_brdf = time.perf_counter() - t_brdf
-    f_proj = min(max([c.f_rho for c in choices.values()] + [f_min]), f_cap)
-    if lighting.lmax < f_proj:
+    # projected once: to the largest lobe order, and at least to the SH-table predictions' bands (planner v2)
+    f_proj = min(max([c.f_rho for c in choices.values()] + [PRED_ORDER + 1]), f_cap)
+    t_proj = 0.0
+    if lighting is None or lighting.lmax < f_proj:
         t0 = time.perf_counter()
         lighting = project_lighting(pixels, f_proj)
-        t_proj += time.perf_counter() - t0
+        t_proj = time.perf_counter() - t0
 
     lobe_info: dict[str, tuple[int, int | None, dict[str, float]]] = {}
     for key, c in choices.items():
@@ -232,9 +227,6 @@ def _plan_at(
             for o in scene.objects}
     used = {r.computation for rr in reps.values() for r in rr if r.computation is not None
             and r.representation in SEED000}
-    for c in computations.values():  # a lobe drawn by another representation computes no seed-000 maps
-        if c.id not in used:
-            c.shared_by.clear()
     computations = {k: c for k, c in computations.items() if c.id in used}
     for obj, comps, shadows in zip(scene.objects, obj_comps, obj_shadows, strict=True):
         comps = [c for c in comps if c.id in used]
@@ -363,8 +355,20 @@ def format_plan(plan: Plan) -> str:
         pe = o.predicted_error.rms_min_of_errors
         lines.append(f"  object {o.name} ({o.shape}, size {o.size:g} at distance {o.distance:g}): "
                      f"{o.viewer} viewer, SHRM {o.shrm}, predicted relative RMS {pe:.3g}")
+        for r in o.representations:
+            terms = ", ".join(f"{k} = {v}" for k, v in r.terms.items() if k != "anisotropic")
+            lines.append(f"    {r.kind}: {r.representation} (seed {r.seed}; {terms}), shadows {r.shadows}, predicted "
+                         f"relative RMS {r.predicted_error:.3g} ({r.error_kind}), {r.predicted_precompute_s:.3g} s, "
+                         f"{r.per_frame_ms:.3g} ms per frame" + ("" if r.executed else " [not executed]"))
         for e in o.effects:
             lines.append(f"    {'+' if e.simulated else '-'} {e.effect}: {e.reason}")
+    for j in d.jobs:
+        lines.append(f"  job {j.kind}: {j.predicted_seconds:.3g} s, shared by {', '.join(j.shared_by)}")
+    if d.frame is not None:
+        fb = d.frame
+        lines.append(f"  per frame {fb.predicted_ms:.3g} ms" + ("" if fb.budget_ms is None else
+                     f" against a budget of {fb.budget_ms:g} ms ({'met' if fb.met else 'not met'})"))
+        lines.extend(f"    frame budget: {x}" for x in fb.downgrades)
     lines.append(f"  predicted {d.predicted_seconds:.3g} s, worst predicted relative RMS "
                  f"{d.predicted_error.rms_min_of_errors:.3g}")
     return "\n".join(lines)

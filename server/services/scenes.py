@@ -24,8 +24,8 @@ from relight.server.services.base import aware, in_thread, utc
 from relight.server.services.brdfs import BrdfService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.jobs import JobService
-from relight.server.services.meshes import MeshService
 from relight.server.services.kinds import JobKind, register
+from relight.server.services.meshes import MeshService
 from relight.worker.analysis import run_scene
 from relight.worker.blobs import DIGEST_RE
 from relight.worker.specs import to_core
@@ -94,13 +94,13 @@ class SceneService:
         for k, obj in enumerate(create.objects):
             try:
                 material = (await self.brdfs.resolve(obj.material)).spec
-            except Unprocessable:
+            except Unprocessable as problem:
                 if not isinstance(obj.material, str) or DIGEST_RE.match(obj.material):
                     raise
                 try:  # anisotropic materials are not registry BRDFs (SHRMs cannot represent them)
                     material = await in_thread(_frame_spec, obj.material)
-                except InputError as exc:
-                    raise Unprocessable(f"objects[{k}].material: {exc}") from None
+                except InputError:
+                    raise problem from None  # not anisotropic either: the registry's problem names the error
             item: dict[str, Any] = {"name": obj.name or f"object{k}", "size": obj.size, "distance": obj.distance,
                                     "material": material, "shadows": obj.shadows,
                                     "interreflections": obj.interreflections}

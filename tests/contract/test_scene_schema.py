@@ -77,6 +77,26 @@ CASES = {
     "object too large": (_object(size=planner.MAX_OBJECT_SIZE * 1.001, distance=4 * planner.MAX_OBJECT_SIZE), False),
     "farthest object": (_object(distance=planner.MAX_OBJECT_DISTANCE), True),
     "object too far": (_object(distance=planner.MAX_OBJECT_DISTANCE * 1.001), False),
+    # planner v2's inputs (issue 16 item 4)
+    **{f"shadows {m}": (_object(shadows=m), True) for m in planner.SHADOW_MODES},
+    "unknown shadows": (_object(shadows="soft"), False),
+    **{f"lighting {m}": (_scene(lighting=m), True) for m in planner.LIGHTING_MODES},
+    "unknown lighting": (_scene(lighting="strobe"), False),
+    "interreflections": (_object(interreflections=True), True),
+    "interreflections not a bool": (_object(interreflections="yes"), False),
+    "largest frame budget": (_scene(frame_budget_ms=planner.MAX_FRAME_BUDGET_MS), True),
+    "frame budget too large": (_scene(frame_budget_ms=planner.MAX_FRAME_BUDGET_MS * 1.001), False),
+    "zero frame budget": (_scene(frame_budget_ms=0.0), False),
+    "edits of all materials": (_scene(material_edits=True), True),
+    "edits by name": (_scene(material_edits=["o0"]), True),
+    "edits of an unknown object": (_scene(material_edits=["nobody"]), False),
+    "mesh and shape": (_object(mesh="0" * 64, shape="bunny"), False),
+    "tangent project": (_object(tangent={"kind": "project", "direction": [1, 0, 0]}), True),
+    "tangent project without direction": (_object(tangent={"kind": "project"}), False),
+    "tangent of the mesh on the sphere": (_object(tangent={"kind": "mesh"}), False),
+    "tangent of the mesh on a sample mesh": (_object(shape="teapot", tangent={"kind": "mesh"}), True),
+    "unknown tangent": (_object(tangent={"kind": "combed"}), False),
+    "anisotropic material": (_object(material="ashikhmin-shirley:nu=48,nv=16,rs=0.05,rd=0"), True),
 }
 
 
@@ -94,4 +114,7 @@ def test_schema_publishes_the_core_limits() -> None:
     size = next(s for s in schema["properties"]["size"]["anyOf"] if s.get("type") == "integer")
     assert (size["minimum"], size["maximum"]) == (planner.MIN_SCENE_SIZE, planner.MAX_SCENE_SIZE)
     shape = schema["$defs"]["SceneObjectCreate"]["properties"]["shape"]
-    assert shape["enum"] == list(planner.SHAPES)
+    assert next(s for s in shape["anyOf"] if "enum" in s)["enum"] == list(planner.SHAPES)
+    obj = schema["$defs"]["SceneObjectCreate"]["properties"]
+    assert obj["shadows"]["enum"] == list(planner.SHADOW_MODES)
+    assert schema["properties"]["lighting"]["enum"] == list(planner.LIGHTING_MODES)

@@ -22,7 +22,7 @@ def scene(env_id: str, **kw: Any) -> dict[str, Any]:
         {"name": "chalk", "size": 1, "distance": 10, "material": "lambert:albedo=0.7"},
         {"name": "metal", "shape": "teapot", "size": 1, "distance": 2, "material": {"kind": "microfacet",
                                                                                   "sigma": 0.4},
-         "view": [0, 0.5, 1]},
+         "view": [0, 0.5, 1], "shadows": "none"},
     ], **kw}
 
 
@@ -38,8 +38,9 @@ def test_scene_job_plan_result_and_files(client: RelightClient, http: httpx.Clie
     assert objs["chalk"]["viewer"] == "distant" and objs["metal"]["viewer"] == "near"
     kinds = [(c["kind"], c["representation"]) for c in done["plan"]["computations"]]
     assert kinds == [("lambert", "irradiance"), ("microfacet", "shrm")]
-    # a glossy lobe on a mesh: its shadows are listed as not simulated (relight.planning.shadows)
+    # a glossy lobe on a mesh with shadows: none keeps its SHRM; its shadows are listed as not simulated
     assert any(e["effect"].startswith("shadowing (glossy") and not e["simulated"] for e in objs["metal"]["effects"])
+    assert [r["representation"] for r in objs["metal"]["representations"]] == ["shrm"]
     assert done["result"]["lighting_projections"] == 1
     assert {"chalk.view.exr", "metal.shrm.exr", "metal.sphere.png"} <= set(done["files"])
     f = http.get(f"/scenes/{sid}/files/chalk.view.exr")
@@ -108,3 +109,35 @@ def test_scene_checks_of_the_core(client: RelightClient, http: httpx.Client, sam
     assert_problem(http.post("/scenes", json=body), 422, "brdf")
     assert_problem(http.get(f"/scenes/{UNKNOWN}"), 404, UNKNOWN)
     assert_problem(http.get(f"/scenes/{UNKNOWN}/files/x.exr"), 404, UNKNOWN)
+
+
+def test_scene_on_an_uploaded_mesh_is_planned_and_shadowed(client: RelightClient, http: httpx.Client,
+                                                            sample_exr: bytes) -> None:
+    """Planner v2's inputs through the API: an uploaded mesh (``POST /meshes``) with a Lambertian material gets its
+    shadowed transfer computed on exactly the uploaded vertices; an anisotropic material (not a registry BRDF) is
+    planned as an SH table; unknown meshes are 404."""
+    from relight.mesh import sample_file
+
+    env = client.upload_envmap(sample_exr)
+    name, data = sample_file("teapot")
+    mesh = http.post(f"/meshes?name={name}", content=data)
+    assert mesh.status_code in (200, 201), mesh.text
+    mesh_id = mesh.json()["id"]
+    body = {"environment": env.id, "epsilon": 0.05, "size": 16, "lighting": "rotating", "objects": [
+        {"name": "chalk", "mesh": mesh_id, "size": 1, "distance": 10, "material": "lambert:albedo=0.7"},
+        {"name": "brushed", "size": 1, "distance": 10, "material": "ashikhmin-shirley:nu=24,nv=8,rs=0.05,rd=0",
+         "tangent": {"kind": "project", "direction": [1, 0, 0]}, "shadows": "none"}]}
+    r = http.post("/scenes", json=body)
+    assert r.status_code == 202, r.text
+    done = wait_done(http, f"/scenes/{r.json()['id']}")
+    assert done["state"] == "succeeded", done
+    objs = {o["name"]: o for o in done["plan"]["objects"]}
+    assert objs["chalk"]["mesh"] == mesh_id and objs["chalk"]["shadows"]["vertices"] == mesh.json()["vertices"]
+    assert objs["chalk"]["representations"][0]["representation"] == "diffuse_transfer"
+    assert objs["brushed"]["representations"][0]["representation"] == "sh_table"
+    assert done["plan"]["lighting_mode"] == "rotating" and done["plan"]["frame"]["predicted_ms"] > 0
+    assert "chalk.transfer.npz" in done["files"]
+    entry = {o["name"]: o for o in done["result"]["objects"]}["chalk"]
+    assert entry["shadows"]["vertices"] == mesh.json()["vertices"]
+    body["objects"][0]["mesh"] = UNKNOWN
+    assert_problem(http.post("/scenes", json=body), 404, UNKNOWN)
