@@ -14,8 +14,8 @@
   gives the per-elevation relative L2 error; weighted by ``sin 2 theta`` over its elevations; plus the chain's
   tolerance (its levels' orders meet epsilon, seed 000 App. B) and the blend of two levels at mid-level
   (``relight.gaussian_chain.blend_kernel_error``), added in quadrature.
-* **In-out PRT** (seed 004): K at the energy fraction ``1 - epsilon`` without an SVD (``relight.factor_predict``), the
-  uncaptured singular energy at most epsilon; plus the lighting's uncaptured energy above the transport's order n.
+* **In-out PRT** (seed 004): K at the energy fraction ``1 - epsilon`` (``relight.factor_predict.terms_for_tolerance``),
+  the uncaptured singular energy at most epsilon; plus the lighting's uncaptured energy above the transport's order n.
 """
 
 from __future__ import annotations
@@ -162,14 +162,15 @@ def chain_levels(height: int, epsilon: float, f_l: int | None) -> tuple[list[int
 
 # ------------------------------------------------------------------------------------------------ seed 004
 @lru_cache(maxsize=256)
-def _terms(key: str, fraction: float) -> tuple[int, str]:
+def _terms(key: str, epsilon: float) -> tuple[int, str]:
     from relight.brdf.spec import parse_brdf
-    from relight.factor_predict import predict_terms
+    from relight.factor_predict import terms_for_tolerance
 
-    out = predict_terms(parse_brdf(json.loads(key)), domain="hemisphere", thresholds=(fraction,))
-    return int(out["terms"][fraction]), str(out["method"])
+    out = terms_for_tolerance(parse_brdf(json.loads(key)), epsilon)
+    return int(out["terms"]), str(out["method"])
 
 
 def inout_terms(spec: Any, epsilon: float) -> tuple[int, str]:
-    """K capturing ``1 - epsilon`` of the BRDF's in-out energy over the visible hemisphere, and the method."""
-    return _terms(spec_key(spec), round(1.0 - epsilon, 12))
+    """K capturing ``1 - epsilon`` of the BRDF's in-out energy over the visible hemisphere, and the method
+    (``relight.factor_predict.terms_for_tolerance``: the radial spectrum, else a cached coarse block SVD)."""
+    return _terms(spec_key(spec), float(epsilon))

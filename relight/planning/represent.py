@@ -14,8 +14,8 @@ alternatives with why they lost, and the frame budget may move a lobe down its l
 3. **Dynamic lighting** (isotropic): ``sh_table`` when the lighting's or the lobe's order for the tolerance is
    within ``F_MAX`` (exact to epsilon, design notes §5.2 item 4), with ``prt_matrix`` for shadows; else
    ``gaussian_lobes`` (the chain is re-prefiltered per change: its seconds are reported).
-4. **Shadows** (isotropic glossy lobe on a mesh): ``inout_prt`` with K = K_hemi(epsilon) terms (seed 004, predicted
-   without an SVD) when its per-frame cost fits the frame budget; ``prt_matrix`` when order ``F_MAX`` is exact to
+4. **Shadows** (isotropic glossy lobe on a mesh): ``inout_prt`` with K = K_hemi(epsilon) terms (seed 004) when
+   K is at most ``INOUT_MAX_TERMS`` and its per-frame cost fits the frame budget; ``prt_matrix`` when order ``F_MAX`` is exact to
    epsilon; else ``gaussian_lobes`` with seed 002's SH visibility (approximate: visibility constant over each lobe).
    ``shadows: approximate`` goes to ``gaussian_lobes`` directly.
 5. **Live material edits**: ``gaussian_lobes`` (the lobes are the material: edits cost nothing).
@@ -43,6 +43,9 @@ SEED: Final = {"irradiance": "000", "reflection_map": "000", "shrm_q0": "000", "
 VISIBILITY_ORDER: Final = 3
 #: Module of the in-out PRT renderer (issue 16 item 3); planned from predictions, executed only when present.
 INOUT_MODULE: Final = "relight.inout_prt"
+#: Most in-out terms the planner gives a lobe: seed 004 §5 ("K limited to 10-20", i.e. Phong s < 10) and design
+#: notes §5.3 (low gloss, K <= ~25); sharper lobes take seed 002's approximate shadows instead.
+INOUT_MAX_TERMS: Final = 25
 
 
 def inout_available() -> bool:
@@ -124,12 +127,14 @@ def candidates(case: LobeCase) -> list[Candidate]:
         out = []
         if case.shadows != "approximate":
             k = case.inout_k or 0
-            run = inout_available()
+            why_not = (None if k <= INOUT_MAX_TERMS else f"K = {k} terms exceed the {INOUT_MAX_TERMS} a glossy lobe "
+                       "is given (seed 004 §5: in-out PRT suits low gloss)")
+            if not inout_available():
+                why_not = f"the in-out PRT renderer ({INOUT_MODULE}, issue 16 item 3) is not on this installation"
             out.append(Candidate("inout_prt", f"glossy lobe with shadows: in-out PRT with K = {k} terms "
                                  "(K_hemi at 1 - epsilon of the BRDF's energy, seed 004), shadows exact within the "
-                                 "lighting's order, view and lighting dynamic", {"K": k}, "exact", run,
-                                 None if run else f"the in-out PRT renderer ({INOUT_MODULE}, issue 16 item 3) is not "
-                                 "on this installation"))
+                                 "lighting's order, view and lighting dynamic", {"K": k}, "exact", why_not is None,
+                                 why_not))
             if exact is not None:
                 out.append(Candidate("prt_matrix", f"glossy lobe with shadows at low frequency: order F = {exact} "
                                      "is exact to the tolerance; SH table on shadow-transferred lighting (seed 003 "

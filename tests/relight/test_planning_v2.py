@@ -171,8 +171,9 @@ def test_dynamic_lighting_tables_when_exact_else_gaussian_lobes() -> None:
 def test_glossy_shadows_exact_inout_when_available_else_listed(monkeypatch: pytest.MonkeyPatch) -> None:
     objs = [obj("phong:s=4", "soft", shape="bunny", shadows="exact"), obj(GLOSSY, "glossy", shape="bunny"),
             obj(GLOSSY, "approx", shape="bunny", shadows="approximate")]
+    assert represent.inout_available()  # issue 16 item 3's renderer is on main
+    monkeypatch.setattr(represent, "inout_available", lambda: False)  # without it: planned, listed, not run
     r = reps(plan(objs))
-    assert not represent.inout_available()  # the renderer of issue 16 item 3 is not installed: planned, listed
     assert r["soft"].representation == "prt_matrix" and r["soft"].shadows == "exact"
     listed = [a for a in r["soft"].alternatives if a.representation == "inout_prt"]
     assert listed and "not executed" in listed[0].why_not and "K = " in listed[0].why_not
@@ -181,6 +182,10 @@ def test_glossy_shadows_exact_inout_when_available_else_listed(monkeypatch: pyte
     assert not any(a.representation == "inout_prt" for a in r["approx"].alternatives)
     monkeypatch.setattr(represent, "inout_available", lambda: True)
     r = reps(plan(objs))
+    # a glossy lobe needs more terms than in-out PRT is given: seed 002's approximate shadows, K stated
+    k_glossy = predict.inout_terms(r["glossy"].lobe, EPS)[0]
+    assert k_glossy > represent.INOUT_MAX_TERMS and r["glossy"].representation == "gaussian_lobes"
+    assert any(a.representation == "inout_prt" and f"K = {k_glossy}" in a.why_not for a in r["glossy"].alternatives)
     soft = r["soft"]
     # K from seed 004's closed form: Phong's F_l with multiplicity l + 1 on the hemisphere (factor_predict), here
     # recounted: the smallest K whose sorted values reach 1 - epsilon of the energy
