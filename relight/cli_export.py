@@ -1,6 +1,7 @@
 """Engine export commands of the ``relight`` CLI (engine-ready outputs issue, item 1).
 
     relight export ENVMAP --target three|filament|gltf|babylon --format ktx2 [--size 256] [--levels L]
+                   [--pixel-format rgba16f|b10g11r11|e5b9g9r9]
                    [--epsilon E] [--sun extract|clamp=V|keep] --out FILE.ktx2 [--server URL] [--json]
         the target engine's prefiltered GGX cube chain (``relight.cube_chain``): one mip per roughness in the
         engine's own lod mapping, RGBA16F, OpenGL face order; FILE.ktx2 carries the per-level table under the
@@ -52,13 +53,14 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def export_chain(pixels: Any, source: dict[str, Any], out: Path, *, target: str, size: int, levels: int | None,
-                 epsilon: float, sun_spec: str, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+                 epsilon: float, sun_spec: str, pixel_format: str = "rgba16f",
+                 extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """The chain, SH9 and sun step of one map (``relight.engine_export.chain_export``) written to ``out``
     (+ ``out.json``) atomically; the manifest."""
     from relight.engine_export import chain_export
 
     files = chain_export(pixels, source, target=target, size=size, levels=levels, epsilon=epsilon,
-                         sun_spec=sun_spec, extra=extra)
+                         sun_spec=sun_spec, pixel_format=pixel_format, extra=extra)
     _write_atomic(out, files.data)
     _write_atomic(out.with_name(out.name + ".json"), json.dumps(files.manifest, indent=2).encode("utf-8"))
     return files.manifest
@@ -77,6 +79,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         return _export_gltf(args, out)
     if args.into:
         raise InputError("--into needs --format gltf")
+    if args.server and args.pixel_format != "rgba16f":
+        raise InputError("--pixel-format other than rgba16f is written locally only (the service writes rgba16f)")
     if args.server:  # the same export from the service (relight.cli_bake.remote_exporter): identical bytes
         from relight.cli_bake import remote_exporter
 
@@ -90,7 +94,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         source = {"path": str(args.envmap), "height": int(env.pixels.shape[0]),
                   "width": int(env.pixels.shape[1])}
         manifest = export_chain(env.pixels, source, out, target=args.target, size=args.size, levels=args.levels,
-                                epsilon=args.epsilon, sun_spec=args.sun)
+                                epsilon=args.epsilon, sun_spec=args.sun, pixel_format=args.pixel_format)
     table = manifest["levels"]
     if args.json:
         print(json.dumps(manifest, indent=2))
@@ -195,6 +199,8 @@ def register(sub: Any) -> None:
                     help="engine whose roughness-to-mip mapping and split-sum lobe the chain follows")
     ex.add_argument("--format", default="ktx2", choices=["ktx2", "gltf"],
                     help="ktx2: the cube chain; gltf: a GLB with EXT_lights_image_based (+ the sun as a light)")
+    ex.add_argument("--pixel-format", default="rgba16f", choices=["rgba16f", "b10g11r11", "e5b9g9r9"],
+                    help="KTX2 texels: RGBA16F (default) or a 4-byte packed unsigned float (relight.packed_float)")
     ex.add_argument("--into", default=None, help="--format gltf: add the lighting to this GLB model")
     ex.add_argument("--size", type=int, default=256, help="face size of level 0 (a power of two)")
     ex.add_argument("--levels", type=int, default=None, help="mip levels (default: down to 1 x 1)")

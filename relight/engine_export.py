@@ -37,9 +37,15 @@ class ExportFiles:
 
 
 def chain_export(pixels: NDArray[np.floating], source: dict[str, Any], *, target: str, size: int,
-                 levels: int | None, epsilon: float, sun_spec: str,
+                 levels: int | None, epsilon: float, sun_spec: str, pixel_format: str = "rgba16f",
                  extra: dict[str, Any] | None = None) -> ExportFiles:
-    """The KTX2 chain of a lat-long map (H, W, 3) and its manifest (module docstring)."""
+    """The KTX2 chain of a lat-long map (H, W, 3) and its manifest (module docstring); ``pixel_format`` one of
+    ``relight.ktx2.PIXEL_FORMATS`` (rgba16f, b10g11r11, e5b9g9r9)."""
+    from relight.errors import InputError
+    from relight.ktx2 import PIXEL_FORMATS
+
+    if pixel_format not in PIXEL_FORMATS:
+        raise InputError(f"unknown pixel format {pixel_format!r}; use one of {', '.join(PIXEL_FORMATS)}")
     from relight import __version__
     from relight.cube_chain import prefilter_chain
     from relight.ktx2 import write_ktx2
@@ -55,11 +61,13 @@ def chain_export(pixels: NDArray[np.floating], source: dict[str, Any], *, target
         "source": source, "size": size, "levels": table, "seconds": chain.seconds, "relight_version": __version__,
         "sh9": all_conventions(sun.pixels), "sun": sun.report, **(extra or {}),
     }
+    if pixel_format != "rgba16f":  # absent for the default, so earlier manifests and files stay the same
+        manifest["pixel_format"] = pixel_format
     data = write_ktx2([lv.faces for lv in chain.levels],
                       {"levels": [{k: v for k, v in row.items() if k != "seconds"} for row in table],
                        "target": chain.target, "roughness_mapping": chain.mapping, "sh9": manifest["sh9"],
                        "sun": sun.report},
-                      writer=f"relight {__version__}")
+                      writer=f"relight {__version__}", vk_format=PIXEL_FORMATS[pixel_format])
     return ExportFiles(data, manifest)
 
 

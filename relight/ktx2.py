@@ -3,8 +3,14 @@
 No KTX library is installable here (pyktx is source-only, libktx is not packaged), so the container is written
 directly: the 12-byte identifier, the header, the index, the level index (level 0 first), a Basic Data Format
 Descriptor, sorted key/value data, then the mip levels from the smallest to the largest, each aligned to
-``lcm(texel block size, 4)`` (spec §3.9). Only uncompressed ``VK_FORMAT_R16G16B16A16_SFLOAT`` (vkFormat 97) is
-written: 8-byte texels, alpha 1. Cube maps have ``faceCount = 6`` and faces in the Vulkan / OpenGL order
+``lcm(texel block size, 4)`` (spec §3.9). Uncompressed formats only: ``VK_FORMAT_R16G16B16A16_SFLOAT`` (vkFormat
+97, the default: 8-byte texels, alpha 1), ``VK_FORMAT_B10G11R11_UFLOAT_PACK32`` (122) and
+``VK_FORMAT_E5B9G9R9_UFLOAT_PACK32`` (123), 4-byte texels packed by ``relight.packed_float`` (half the size; three
+r187's KTX2Loader maps them to ``RGBFormat`` with ``UnsignedInt101111Type`` / ``UnsignedInt5999Type``). DFD
+samples: unsigned-float R, G, B at bit offsets 0, 11, 22 (lengths 11, 11, 10; qualifier FLOAT, lower 0.0f, upper
+1.0f), and for the shared exponent, as KTX-Software's DFD utilities write it, each channel's 9-bit mantissa (lower
+0, upper 8448) followed by its exponent sample (bits 27-31, qualifier EXPONENT, lower 15, upper 31).
+Cube maps have ``faceCount = 6`` and faces in the Vulkan / OpenGL order
 +X, -X, +Y, -Y, +Z, -Z with the OpenGL face orientation (docs/conventions.md), which is what ``relight.envmap``'s
 cube functions use; KTX2 has no orientation key for cube maps.
 
@@ -29,6 +35,11 @@ from relight.errors import InputError
 
 IDENTIFIER = bytes([0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A])
 VK_FORMAT_R16G16B16A16_SFLOAT = 97
+VK_FORMAT_B10G11R11_UFLOAT_PACK32 = 122
+VK_FORMAT_E5B9G9R9_UFLOAT_PACK32 = 123
+#: ``--pixel-format`` names -> vkFormat.
+PIXEL_FORMATS = {"rgba16f": VK_FORMAT_R16G16B16A16_SFLOAT, "b10g11r11": VK_FORMAT_B10G11R11_UFLOAT_PACK32,
+                 "e5b9g9r9": VK_FORMAT_E5B9G9R9_UFLOAT_PACK32}
 _HEADER = struct.Struct("<9I4I2Q")  # header (9 x u32) + index (4 x u32, 2 x u64)
 _LEVEL = struct.Struct("<3Q")
 _TEXEL_BYTES = 8
@@ -37,22 +48,52 @@ _KHR_DF_MODEL_RGBSDA = 1
 _KHR_DF_PRIMARIES_BT709 = 1
 _KHR_DF_TRANSFER_LINEAR = 1
 _KHR_DF_SAMPLE_FLOAT_SIGNED = 0x80 | 0x40
+_KHR_DF_SAMPLE_FLOAT = 0x80
+_KHR_DF_SAMPLE_EXPONENT = 0x20
 _CHANNELS = (0, 1, 2, 15)  # R, G, B, A channel ids
 _ONE_F32_BITS = 0x3F800000  # 1.0f: sampleUpper of a float channel; sampleLower is -1.0f
 _MINUS_ONE_F32_BITS = -0x40800000  # 0xBF800000 as a signed 32-bit integer (the field is signed for signed samples)
 HALF_MAX = 65504.0
 
 
-def _dfd_rgba16f() -> bytes:
-    samples = b"".join(
-        struct.pack("<HBB4Bii", 16 * i, 15, ch | _KHR_DF_SAMPLE_FLOAT_SIGNED, 0, 0, 0, 0, _MINUS_ONE_F32_BITS,
-                    _ONE_F32_BITS)
-        for i, ch in enumerate(_CHANNELS)
-    )
+def _sample(offset: int, length: int, channel: int, lower: int, upper: int) -> bytes:
+    return struct.pack("<HBB4BiI" if upper >= 0 else "<HBB4Bii", offset, length - 1, channel, 0, 0, 0, 0, lower,
+                       upper)
+
+
+def _dfd(vk_format: int) -> bytes:
+    if vk_format == VK_FORMAT_R16G16B16A16_SFLOAT:
+        samples = b"".join(_sample(16 * i, 16, ch | _KHR_DF_SAMPLE_FLOAT_SIGNED, _MINUS_ONE_F32_BITS, _ONE_F32_BITS)
+                           for i, ch in enumerate(_CHANNELS))
+    elif vk_format == VK_FORMAT_B10G11R11_UFLOAT_PACK32:
+        samples = b"".join(_sample(off, n, ch | _KHR_DF_SAMPLE_FLOAT, 0, _ONE_F32_BITS)
+                           for off, n, ch in ((0, 11, 0), (11, 11, 1), (22, 10, 2)))
+    elif vk_format == VK_FORMAT_E5B9G9R9_UFLOAT_PACK32:
+        samples = b"".join(_sample(9 * ch, 9, ch, 0, 8448) + _sample(27, 5, ch | _KHR_DF_SAMPLE_EXPONENT, 15, 31)
+                           for ch in range(3))
+    else:
+        raise InputError(f"unsupported vkFormat {vk_format}; use one of {sorted(PIXEL_FORMATS.values())}")
     block_size = 24 + len(samples)
     block = struct.pack("<HHHH4B4B8B", 0, 0, 2, block_size, _KHR_DF_MODEL_RGBSDA, _KHR_DF_PRIMARIES_BT709,
-                        _KHR_DF_TRANSFER_LINEAR, 0, 0, 0, 0, 0, _TEXEL_BYTES, 0, 0, 0, 0, 0, 0, 0) + samples
+                        _KHR_DF_TRANSFER_LINEAR, 0, 0, 0, 0, 0, _texel_bytes(vk_format), 0, 0, 0, 0, 0, 0, 0) + samples
     return struct.pack("<I", 4 + len(block)) + block
+
+
+def _texel_bytes(vk_format: int) -> int:
+    return _TEXEL_BYTES if vk_format == VK_FORMAT_R16G16B16A16_SFLOAT else 4
+
+
+def _encode(arr: NDArray[np.floating], vk_format: int) -> bytes:
+    from relight import packed_float
+
+    if vk_format == VK_FORMAT_R16G16B16A16_SFLOAT:
+        half, _ = to_half_rgba(arr)
+        return bytes(half.astype("<f2").tobytes())
+    if not np.all(np.isfinite(arr)):
+        raise InputError("cube faces hold non-finite values")
+    pack = (packed_float.pack_b10g11r11 if vk_format == VK_FORMAT_B10G11R11_UFLOAT_PACK32
+            else packed_float.pack_e5b9g9r9)
+    return bytes(pack(arr).astype("<u4").tobytes())
 
 
 def _kvd(entries: Mapping[str, bytes]) -> bytes:
@@ -78,11 +119,13 @@ def to_half_rgba(faces: NDArray[np.floating]) -> tuple[NDArray[np.float16], int]
 
 
 def write_ktx2(levels: Sequence[NDArray[np.floating]], metadata: Mapping[str, Any] | None = None,
-               *, writer: str = "relight") -> bytes:
+               *, writer: str = "relight", vk_format: int = VK_FORMAT_R16G16B16A16_SFLOAT) -> bytes:
     """A cube-map KTX2 file from mip levels ``levels[i]`` of shape (6, s_i, s_i, 3), s_i = s_0 >> i.
 
-    ``metadata`` entries are stored as JSON under ``relight.<key>``. Values are converted to float16 (clamped).
+    ``metadata`` entries are stored as JSON under ``relight.<key>``. Values are converted to float16 (clamped) or
+    packed (``vk_format`` 122 or 123, module docstring).
     """
+    dfd = _dfd(vk_format)
     if not levels:
         raise InputError("a KTX2 chain needs at least one level")
     size = int(np.asarray(levels[0]).shape[1])
@@ -92,17 +135,15 @@ def write_ktx2(levels: Sequence[NDArray[np.floating]], metadata: Mapping[str, An
         want = (6, max(size >> i, 1), max(size >> i, 1), 3)
         if arr.shape != want:
             raise InputError(f"level {i} must have shape {want}, got {arr.shape}")
-        half, _ = to_half_rgba(arr)
-        payloads.append(half.astype("<f2").tobytes())
+        payloads.append(_encode(arr, vk_format))
     entries = {"KTXwriter": writer.encode("utf-8") + b"\x00"}
     for key, value in (metadata or {}).items():
         entries[f"relight.{key}"] = json.dumps(value, sort_keys=True).encode("utf-8") + b"\x00"
-    dfd = _dfd_rgba16f()
     kvd = _kvd(entries)
     n = len(payloads)
     dfd_offset = len(IDENTIFIER) + _HEADER.size + n * _LEVEL.size
     kvd_offset = dfd_offset + len(dfd)
-    align = math.lcm(_TEXEL_BYTES, 4)
+    align = math.lcm(_texel_bytes(vk_format), 4)
     offsets = [0] * n
     body = bytearray()
     cursor = kvd_offset + len(kvd)
@@ -113,7 +154,7 @@ def write_ktx2(levels: Sequence[NDArray[np.floating]], metadata: Mapping[str, An
         offsets[i] = cursor
         body += payloads[i]
         cursor += len(payloads[i])
-    header = _HEADER.pack(VK_FORMAT_R16G16B16A16_SFLOAT, 2, size, size, 0, 0, 6, n, 0,
+    header = _HEADER.pack(vk_format, 2 if vk_format == VK_FORMAT_R16G16B16A16_SFLOAT else 4, size, size, 0, 0, 6, n, 0,
                           dfd_offset, len(dfd), kvd_offset, len(kvd), 0, 0)
     index = b"".join(_LEVEL.pack(offsets[i], len(p), len(p)) for i, p in enumerate(payloads))
     return IDENTIFIER + header + index + dfd + kvd + bytes(body)
@@ -131,26 +172,37 @@ class Ktx2Cube:
 
 
 def read_ktx2(data: bytes) -> Ktx2Cube:
-    """Parse an uncompressed RGBA16F cube-map KTX2 file (the form :func:`write_ktx2` writes)."""
+    """Parse an uncompressed cube-map KTX2 file of the forms :func:`write_ktx2` writes (packed texels decoded,
+    alpha 1)."""
+    from relight import packed_float
+
     if data[:12] != IDENTIFIER:
         raise InputError("not a KTX 2.0 file (identifier mismatch)")
     if len(data) < 12 + _HEADER.size:
         raise InputError("KTX2 file is truncated in its header")
     (vk, type_size, width, height, depth, layers, faces, n, scheme, dfd_off, dfd_len, kvd_off, kvd_len,
      _sgd_off, _sgd_len) = _HEADER.unpack_from(data, 12)
-    if vk != VK_FORMAT_R16G16B16A16_SFLOAT or type_size != 2 or faces != 6 or scheme != 0:
-        raise InputError(f"only uncompressed RGBA16F cube maps are read here (vkFormat {vk}, faces {faces}, "
-                         f"supercompression {scheme})")
+    if vk not in PIXEL_FORMATS.values() or type_size != (2 if vk == VK_FORMAT_R16G16B16A16_SFLOAT else 4) \
+            or faces != 6 or scheme != 0:
+        raise InputError(f"only uncompressed RGBA16F, B10G11R11 and E5B9G9R9 cube maps are read here (vkFormat {vk}, "
+                         f"faces {faces}, supercompression {scheme})")
+    texel = _texel_bytes(vk)
     if width != height or depth != 0 or layers != 0 or not 1 <= n <= 32:
         raise InputError(f"unexpected cube geometry {width}x{height}x{depth}, {layers} layers, {n} levels")
     levels: list[NDArray[np.float32]] = []
     for i in range(n):
         off, length, _ = _LEVEL.unpack_from(data, 12 + _HEADER.size + i * _LEVEL.size)
         s = max(width >> i, 1)
-        if length != 6 * s * s * _TEXEL_BYTES or off + length > len(data):
-            raise InputError(f"level {i} has {length} bytes at {off}; expected {6 * s * s * _TEXEL_BYTES}")
-        arr = np.frombuffer(data, dtype="<f2", count=6 * s * s * 4, offset=off)
-        levels.append(arr.astype(np.float32).reshape(6, s, s, 4))
+        if length != 6 * s * s * texel or off + length > len(data):
+            raise InputError(f"level {i} has {length} bytes at {off}; expected {6 * s * s * texel}")
+        if vk == VK_FORMAT_R16G16B16A16_SFLOAT:
+            arr = np.frombuffer(data, dtype="<f2", count=6 * s * s * 4, offset=off)
+            levels.append(arr.astype(np.float32).reshape(6, s, s, 4))
+            continue
+        words = np.frombuffer(data, dtype="<u4", count=6 * s * s, offset=off).reshape(6, s, s)
+        rgb = (packed_float.unpack_b10g11r11(words) if vk == VK_FORMAT_B10G11R11_UFLOAT_PACK32
+               else packed_float.unpack_e5b9g9r9(words))
+        levels.append(np.concatenate([rgb, np.ones((6, s, s, 1))], axis=-1).astype(np.float32))
     meta: dict[str, Any] = {}
     writer = ""
     pos, end = kvd_off, kvd_off + kvd_len
