@@ -16,8 +16,8 @@ alternatives with why they lost, and the frame budget may move a lobe down its l
    ``gaussian_lobes`` (the chain is re-prefiltered per change: its seconds are reported).
 4. **Shadows** (isotropic glossy lobe on a mesh): ``inout_prt`` with K = K_hemi(epsilon) terms (seed 004) when
    K is at most ``INOUT_MAX_TERMS`` and its per-frame cost fits the frame budget; ``prt_matrix`` when order
-   ``F_MAX`` is exact to epsilon; else ``gaussian_lobes`` with seed 002's SH visibility (approximate: visibility constant over each lobe).
-   ``shadows: approximate`` goes to ``gaussian_lobes`` directly.
+   ``F_MAX`` is exact to epsilon; else ``gaussian_lobes`` with seed 002's SH visibility (approximate: visibility
+   constant over each lobe). ``shadows: approximate`` goes to ``gaussian_lobes`` directly.
 5. **Live material edits**: ``gaussian_lobes`` (the lobes are the material: edits cost nothing).
 6. **Otherwise**: seed 000 — ``reflection_map`` (radial), ``shrm_q0`` (no azimuthal dependence), ``shrm``.
 
