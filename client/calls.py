@@ -219,6 +219,18 @@ class Calls:
         return Call("GET", f"/shrms/{shrm_id}/reflection.exr", raw_bytes, {"params": {"view": v}})
 
     @staticmethod
+    def gaussian_render(fit: str, chain: str, view: tuple[float, float, float] | str, size: int,
+                        visibility: str | None, mode: str, fmt: str) -> Call[bytes]:
+        """``GET /gaussian/render.{fmt}``: a gaussian_fit job lit by a gaussian_chain job (seed 002)."""
+        if fmt not in ("png", "exr"):
+            raise ValueError(f"unknown image format {fmt!r}: expected png or exr")
+        v = view if isinstance(view, str) else ",".join(f"{c:.17g}" for c in view)
+        params: dict[str, Any] = {"fit": fit, "chain": chain, "view": v, "size": size, "mode": mode}
+        if visibility is not None:
+            params["visibility"] = visibility
+        return Call("GET", f"/gaussian/render.{fmt}", raw_bytes, {"params": params})
+
+    @staticmethod
     def create_tradeoff(body: dict[str, Any]) -> Call[TradeoffPublic]:
         return Call("POST", "/tradeoffs", model_parser(TradeoffPublic), {"json": body})
 

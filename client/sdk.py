@@ -211,6 +211,13 @@ class RelightClient:
     def reflection(self, shrm_id: str, view: tuple[float, float, float] | str) -> bytes:
         return self._do(Calls.reflection(shrm_id, view))
 
+    def gaussian_render(self, fit: str, chain: str, view: tuple[float, float, float] | str = "0,0,1", *,
+                        size: int = 128, visibility: str | None = None, mode: str = "none",
+                        fmt: str = "exr") -> bytes:
+        """A ``gaussian_fit`` job's lobes lit by a ``gaussian_chain`` job (seed 002 §5): the sphere, or with a
+        ``visibility`` job its mesh shadowed per ``mode`` (none, ao, sh, sh-lobe); EXR (linear) or PNG bytes."""
+        return self._do(Calls.gaussian_render(fit, chain, view, size, visibility, mode, fmt))
+
     def create_tradeoff(self, envmap: str, brdf: Spec, *, rows: int | None = None, size: int | None = None,
                         epsilons: list[float] | None = None, truncations: list[float] | None = None,
                         view: tuple[float, float, float] | None = None) -> TradeoffPublic:
@@ -396,6 +403,12 @@ class AsyncRelightClient:
 
     async def reflection(self, shrm_id: str, view: tuple[float, float, float] | str) -> bytes:
         return await self._do(Calls.reflection(shrm_id, view))
+
+    async def gaussian_render(self, fit: str, chain: str, view: tuple[float, float, float] | str = "0,0,1", *,
+                              size: int = 128, visibility: str | None = None, mode: str = "none",
+                              fmt: str = "exr") -> bytes:
+        """The async twin of :meth:`RelightClient.gaussian_render`."""
+        return await self._do(Calls.gaussian_render(fit, chain, view, size, visibility, mode, fmt))
 
     async def create_tradeoff(self, envmap: str, brdf: Spec, *, rows: int | None = None, size: int | None = None,
                               epsilons: list[float] | None = None, truncations: list[float] | None = None,

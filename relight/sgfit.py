@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -49,6 +50,7 @@ from relight.sg_order import (
 )
 from relight.sg_slice import SliceGrid, slice_grid, transfer_slice
 from relight.sg_varpro import SIGMA_LO, Solution, VarPro, basis, channel_weights, luminance, peak, relative_error, solve
+from relight.sgfit_refine import MAX_INSERTED, Elevation, refine_elevations
 
 FloatArray = NDArray[np.float64]
 
@@ -75,6 +77,8 @@ class FitSettings:
     n_gamma: int = 160
     n_psi: int = 24
     max_nfev: int = 200
+    #: Elevations the bisection pass may add where interpolation fails (``relight.sgfit_refine``; 0: none).
+    max_inserted: int = MAX_INSERTED
 
     def check(self) -> None:
         if not 1 <= self.lobes <= 8:
@@ -88,9 +92,56 @@ class FitSettings:
             raise InputError(f"fit: max_lobes must lie in [lobes, 8], got {self.max_lobes}")
 
 
-def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None = None) -> GaussianLobes:
+@dataclass
+class ColdElevation:
+    """What one elevation's fit needs before the continuation: its slice (M, 3) and sqrt quadrature weights (M,),
+    the peak (mu, sigma) of the luminance and the solutions from the cold starts (``cold_elevation``)."""
+
+    theta: float
+    t: FloatArray
+    sq: FloatArray
+    peak: tuple[float, float]
+    sols: list[Solution]
+
+
+def cold_elevation(brdf: Lobe | SumBRDF | Any, settings: FitSettings, theta: float, first: bool) -> ColdElevation:
+    """The part of one elevation's fit that depends on nothing else (a pure function of its arguments, so it can
+    run anywhere: ``relight.worker.gaussian`` fans it out over the Dask workers): the slice and the fits from the
+    cold starts -- at the first elevation three spreads of widths around the peak (mu = 0 at theta_o = 0), later
+    one spread and the lobes spread across the plane of incidence."""
+    grid = slice_grid(settings.n_gamma, settings.n_psi)
+    t, sq = _slice_at(brdf, grid, theta)
+    y = sq * luminance(t)
+    if not np.any(y > 0.0):
+        raise InputError(f"fit: the BRDF slice is zero at theta_o = {math.degrees(theta):.3g} degrees")
+    mu_pk, sig_pk = peak(grid.local, y, sq)
+    k = settings.lobes
+    fix_mu = first and theta == 0.0
+    prob = VarPro(grid.local, sq, y, k, fix_mu)
+    starts: list[tuple[FloatArray, FloatArray]] = []
+    fresh_mu = np.zeros(k) if fix_mu else np.full(k, mu_pk)
+    for spread in ((0.5, 1.0, 2.0), (0.7, 1.0, 1.4), (0.3, 1.0, 3.0)) if first else ((0.5, 1.0, 2.0),):
+        f = np.geomspace(spread[0], spread[2], k) if k > 1 else np.ones(1)
+        starts.append((fresh_mu, np.log(sig_pk * f)))
+    if not first and k > 1:  # lobes spread across the plane of incidence around the peak
+        starts.append((mu_pk + sig_pk * np.linspace(-0.8, 0.8, k), np.full(k, math.log(0.8 * sig_pk))))
+    sols = [solve(prob, mu0, s0, settings.max_nfev) for mu0, s0 in starts]
+    return ColdElevation(theta, t, sq, (mu_pk, sig_pk), sols)
+
+
+#: Maps ``[(theta, first), ...]`` to their :class:`ColdElevation` in order (serial here; a Dask map in the worker).
+ColdMap = Callable[[list[tuple[float, bool]]], list[ColdElevation]]
+
+
+def _serial_map(brdf: Any, settings: FitSettings) -> ColdMap:
+    return lambda items: [cold_elevation(brdf, settings, th, first) for th, first in items]
+
+
+def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None = None, *,
+                       cold_map: ColdMap | None = None) -> GaussianLobes:
     """Fit K Gaussian lobes at N elevations in [0, theta_max] (module docstring); returns the material with its
-    report in ``.fit`` (per-elevation errors, mid-elevation errors, energy check, timings)."""
+    report in ``.fit`` (per-elevation errors, mid-elevation errors, energy check, timings). ``cold_map`` runs the
+    independent per-elevation part (:func:`cold_elevation`) -- the result does not depend on where it ran."""
     st = settings or FitSettings()
     st.check()
     k_max = st.lobes if st.max_lobes is None else st.max_lobes
@@ -100,37 +151,27 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
     thetas = np.linspace(0.0, st.theta_max, st.elevations)
     errors = np.zeros(st.elevations)
     albedo = np.zeros((st.elevations, 3))
-    leak = np.zeros(st.elevations)
     used = np.zeros(st.elevations, dtype=np.intp)
     slices: list[tuple[FloatArray, FloatArray]] = []
     prev: Solution | None = None
     prev_full: Solution | None = None
     bests: list[Solution] = []
     probs: list[VarPro] = []
+    colds = (cold_map or _serial_map(brdf, st))([(float(th), i == 0) for i, th in enumerate(thetas)])
     for i, th in enumerate(thetas):
-        t, valid = transfer_slice(brdf, grid, float(th))
-        if t.shape[1] == 1:
-            t = np.repeat(t, 3, axis=1)
-        sq = np.sqrt(grid.weights * valid)
+        cold = colds[i]
+        t, sq = cold.t, cold.sq
         slices.append((t, sq))
         y = sq * luminance(t)
-        albedo[i] = (grid.weights * valid) @ t
-        if not np.any(y > 0.0):
-            raise InputError(f"fit: the BRDF slice is zero at theta_o = {math.degrees(th):.3g} degrees")
-        mu_pk, sig_pk = peak(local, y, sq)
+        albedo[i] = _albedo(t, sq)
+        mu_pk, sig_pk = cold.peak
         k = st.lobes
         fix_mu = i == 0 and th == 0.0
         prob = VarPro(local, sq, y, k, fix_mu)
         starts: list[tuple[FloatArray, FloatArray]] = []
-        fresh_mu = np.zeros(k) if fix_mu else np.full(k, mu_pk)
-        for spread in ((0.5, 1.0, 2.0), (0.7, 1.0, 1.4), (0.3, 1.0, 3.0)) if prev is None else ((0.5, 1.0, 2.0),):
-            f = np.geomspace(spread[0], spread[2], k) if k > 1 else np.ones(1)
-            starts.append((fresh_mu, np.log(sig_pk * f)))
-        if prev is not None and k > 1:  # lobes spread across the plane of incidence around the peak
-            starts.append((mu_pk + sig_pk * np.linspace(-0.8, 0.8, k), np.full(k, math.log(0.8 * sig_pk))))
         warm = -1
         if prev is not None:
-            warm = len(starts)
+            warm = len(cold.sols)
             starts.append((prev.mu[:k], prev.s[:k]))
             dead = prev.w[:k] <= DEAD_FRACTION * max(prev.w[:k].sum(), 1e-300)
             if dead.any():
@@ -138,7 +179,7 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
                 mu_r[dead] = mu_pk
                 s_r[dead] = math.log(sig_pk) + np.linspace(-0.7, 0.7, int(dead.sum()))
                 starts.append((mu_r, s_r))
-        sols = [solve(prob, mu0, s0, st.max_nfev) for mu0, s0 in starts]
+        sols = list(cold.sols) + [solve(prob, mu0, s0, st.max_nfev) for mu0, s0 in starts]
         best = min(sols, key=lambda x: x.cost)
         if warm >= 0 and sols[warm].cost <= (1.0 + CONTINUATION_SLACK) * best.cost:
             best = sols[warm]  # the warm start, unless another basin is clearly better
@@ -194,25 +235,39 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
                                           (mu_full, s_full, w_full), order)
         mus[i], ss[i], ws[i] = mu_full[order], s_full[order], w_full[order]
         errors[i] = relative_error(local, sq, t, mus[i], ss[i], ws[i])
-        g_below = basis(local, mus[i], ss[i])[0] @ ws[i]
-        z = grid.world(float(th))[:, 2]
-        tot_fit = float(grid.weights @ g_below.sum(axis=1))
-        leak[i] = float(grid.weights @ np.where(z <= 0.0, g_below.sum(axis=1), 0.0)) / tot_fit if tot_fit else 0.0
     pin_dead(mus, ss, ws)
     if thetas[0] == 0.0:
         mus[0] = 0.0  # mu = 0 at normal view by symmetry, dead lobes included (they only fade in from there)
+    n_fitted = thetas.size
+    fitted_thetas = thetas.copy()
+    if st.max_inserted > 0:
+        fitted = [Elevation(float(th), mus[i], ss[i], ws[i], float(errors[i])) for i, th in enumerate(thetas)]
+        rows = refine_elevations(brdf, grid, fitted, st, max_inserted=st.max_inserted)
+        if len(rows) > n_fitted:
+            thetas = np.array([r.theta for r in rows])
+            mus, ss = np.stack([r.mu for r in rows]), np.stack([r.s for r in rows])
+            ws, errors = np.stack([r.w for r in rows]), np.array([r.error for r in rows])
+            alive = ws.sum(axis=2) > DEAD_FRACTION * np.maximum(ws.sum(axis=(1, 2)), 1e-300)[:, None]
+            was = np.searchsorted(fitted_thetas, thetas)  # fitted rows keep their count; inserted: live lobes
+            used = np.where(np.isin(thetas, fitted_thetas), used[np.minimum(was, n_fitted - 1)], alive.sum(axis=1))
+            albedo = np.stack([_albedo(*_slice_at(brdf, grid, float(th))) for th in thetas])
+    leak = np.array([_leak(grid, float(th), mus[i], ss[i], ws[i]) for i, th in enumerate(thetas)])
     mid = _mid_errors(brdf, grid, thetas, mus, ss, ws)
+    envelope = _envelope(thetas[np.isin(thetas, fitted_thetas)], thetas, errors, mid)
     sigma = np.exp(ss)
     report: dict[str, Any] = {
         "method": "variable projection (NNLS weights, TRF on mu and log sigma, Kaufman Jacobian), continuation",
         "lobes": st.lobes,
         "max_lobes": st.lobes if st.max_lobes is None else st.max_lobes,
         "lobes_used": [int(x) for x in used],
+        "elevations_fitted": n_fitted,
+        "elevations_inserted": int(thetas.size - n_fitted),
         "theta_max": st.theta_max,
         "grid": {"n_gamma": st.n_gamma, "n_psi": st.n_psi, "nodes": grid.size},
         "errors": [float(x) for x in errors],
         "mid_elevations": [float(x) for x in 0.5 * (thetas[1:] + thetas[:-1])],
         "mid_errors": [float(x) for x in mid],
+        "envelope_ratios": [float(x) for x in envelope],
         "albedo": albedo.tolist(),
         "sum_weights": ws.sum(axis=1).tolist(),
         "leak_below_horizon": [float(x) for x in leak],
@@ -220,6 +275,31 @@ def fit_gaussian_lobes(brdf: Lobe | SumBRDF | Any, settings: FitSettings | None 
         "brdf": _brdf_spec(brdf),
     }
     return GaussianLobes(thetas, mus, sigma, ws, errors=errors, fit=report)
+
+
+def _envelope(fitted: FloatArray, thetas: FloatArray, errors: FloatArray, mid: FloatArray) -> FloatArray:
+    """Per interval of the fitted grid: the largest error inside it (inserted elevations and every mid-elevation
+    with interpolated parameters) over the larger error at its ends -- the mid-elevation rule measured against
+    the original neighbours, so inserted elevations cannot pass it by being bad themselves."""
+    out = np.zeros(fitted.size - 1)
+    idx = np.searchsorted(fitted, thetas, side="right") - 1  # the fitted interval each elevation starts
+    ends = errors[np.isin(thetas, fitted)]
+    for j, (i0, e) in enumerate(zip(idx[:-1], mid, strict=True)):
+        inner = errors[j + 1] if thetas[j + 1] not in fitted else 0.0
+        out[i0] = max(out[i0], e, inner)
+    return np.asarray(out / np.maximum(np.maximum(ends[:-1], ends[1:]), 1e-300), dtype=np.float64)
+
+
+def _albedo(t: FloatArray, sq: FloatArray) -> FloatArray:
+    return np.asarray((sq * sq) @ t, dtype=np.float64)
+
+
+def _leak(grid: SliceGrid, theta: float, mu: FloatArray, s: FloatArray, w: FloatArray) -> float:
+    """The fraction of the fitted lobes' mass below the horizon at elevation theta."""
+    g = (basis(grid.local, mu, s)[0] @ w).sum(axis=1)
+    z = grid.world(theta)[:, 2]
+    tot = float(grid.weights @ g)
+    return float(grid.weights @ np.where(z <= 0.0, g, 0.0)) / tot if tot else 0.0
 
 
 def _brdf_spec(brdf: Any) -> Any:

@@ -10,8 +10,12 @@ paper's two K x N textures as little-endian float16, (N, K, 8) = (mu, sigma, 0, 
 file per level, ``level_JJ.bin``: little-endian float16 RGB, H_j x 2 H_j x 3, row 0 = +Y (the lat-long layout of
 ``docs/conventions.md``), listed with sigma, size and orders in the result.
 
-The elevations are fitted in sequence (each warm-starts the next: continuation, ``relight.sgfit``), so a fit is not
-fanned out over workers; a chain is one projection plus a synthesis per level (about a second for 1024 x 512).
+A fit fans out over elevations: the part of each elevation's fit that depends on nothing else (its slice and the
+fits from the cold starts, ``relight.sgfit.cold_elevation``) runs as one Dask task per elevation
+(:func:`gaussian_cold_task`, submitted through ``distributed.worker_client``; the job's thread secedes while it
+waits), then the continuation across elevations, the ordering and the bisection run in the job. The cold part is a
+pure function of (BRDF spec, settings, theta_o), so the fanned-out fit equals the serial one (a direct call, outside
+a worker, maps it in turn). A chain is one projection plus a synthesis per level (about a second for 1024 x 512).
 """
 
 from __future__ import annotations
@@ -27,22 +31,79 @@ from relight.worker.specs import from_core, to_core
 OCTET = "application/octet-stream"
 
 
-def compute_gaussian_fit(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
+def fit_settings(request: dict[str, Any]) -> Any:
+    """The core's ``FitSettings`` of a canonical ``gaussian_fit`` request."""
     import math
 
+    from relight.sgfit import DEFAULT_EXTRA_LOBES, FitSettings
+
+    lobes = int(request["lobes"])
+    max_lobes = request.get("max_lobes")
+    return FitSettings(lobes=lobes, elevations=int(request["elevations"]),
+                       theta_max=math.radians(float(request["theta_max_deg"])),
+                       max_lobes=min(lobes + DEFAULT_EXTRA_LOBES, 8) if max_lobes is None else int(max_lobes))
+
+
+def gaussian_cold_task(core_spec: Any, settings: Any, theta: float, first: bool) -> tuple[Any, str]:
+    """One elevation's independent part (``relight.sgfit.cold_elevation``) and the process that computed it."""
+    import os
+    import socket
+
     from relight.brdf.spec import parse_brdf
-    from relight.sgfit import DEFAULT_EXTRA_LOBES, FitSettings, fit_gaussian_lobes
+    from relight.sgfit import cold_elevation
+
+    return cold_elevation(parse_brdf(core_spec), settings, theta, first), f"{socket.gethostname()}:{os.getpid()}"
+
+
+def _cold_map(ctx: JobContext, core_spec: Any, settings: Any, processes: set[str]) -> Any:
+    """A ``relight.sgfit.ColdMap`` running one Dask task per elevation when on a worker, in turn otherwise."""
+    fanned = True
+    try:
+        from distributed import get_worker, worker_client
+
+        get_worker()
+    except (ImportError, ValueError):
+        fanned = False
+
+    def run(items: list[tuple[float, bool]]) -> list[Any]:
+        done: dict[int, Any] = {}
+        if not fanned:
+            for i, (th, first) in enumerate(items):
+                done[i], proc = gaussian_cold_task(core_spec, settings, th, first)
+                processes.add(proc)
+                ctx.report("fitting elevations", 0.1 + 0.6 * (i + 1) / len(items))
+            return [done[i] for i in range(len(items))]
+        import distributed
+
+        as_completed: Any = distributed.as_completed  # untyped
+        with worker_client() as client:
+            prefix = f"relight-gaussian-cold-{ctx.report.job_id}-{ctx.report.submission}"
+            futures = {client.submit(gaussian_cold_task, core_spec, settings, th, first, pure=False,
+                                     key=f"{prefix}-{i}"): i for i, (th, first) in enumerate(items)}
+            try:
+                for fut in as_completed(list(futures)):
+                    done[futures[fut]], proc = fut.result()
+                    processes.add(proc)
+                    ctx.report("fitting elevations", 0.1 + 0.6 * len(done) / len(items))
+            finally:
+                client.cancel([f for f in futures if not f.done()])
+        return [done[i] for i in range(len(items))]
+
+    return run
+
+
+def compute_gaussian_fit(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
+    from relight.brdf.spec import parse_brdf
+    from relight.sgfit import fit_gaussian_lobes
 
     t0 = time.perf_counter()
     ctx.report("loading", 0.05)
-    brdf = parse_brdf(to_core(request["brdf_spec"], ctx.store))
-    lobes = int(request["lobes"])
-    max_lobes = request.get("max_lobes")
-    settings = FitSettings(lobes=lobes, elevations=int(request["elevations"]),
-                           theta_max=math.radians(float(request["theta_max_deg"])),
-                           max_lobes=min(lobes + DEFAULT_EXTRA_LOBES, 8) if max_lobes is None else int(max_lobes))
+    core_spec = to_core(request["brdf_spec"], ctx.store)
+    brdf = parse_brdf(core_spec)
+    settings = fit_settings(request)
     ctx.report("fitting", 0.1)
-    material = fit_gaussian_lobes(brdf, settings)
+    processes: set[str] = set()
+    material = fit_gaussian_lobes(brdf, settings, cold_map=_cold_map(ctx, core_spec, settings, processes))
     ctx.report.check_cancelled()
     n, k = material.mu.shape
     tex = np.zeros((n, k, 8), dtype="<f2")
@@ -53,6 +114,7 @@ def compute_gaussian_fit(ctx: JobContext, request: dict[str, Any]) -> dict[str, 
             "errors": [float(e) for e in material.fit["errors"]],
             "mid_errors": [float(e) for e in material.fit["mid_errors"]],
             "lobes_used": material.fit["lobes_used"], "fit_seconds": material.fit["seconds"],
+            "elevations_inserted": material.fit["elevations_inserted"], "processes": len(processes),
             "task_seconds": time.perf_counter() - t0,
             "layout": "lobes.bin: float16 (N, K, 8) = mu, sigma, 0, 0, w_r, w_g, w_b, 0 (radians)",
             "files": {"lobes.bin": {"sha256": digest, "media_type": OCTET}}}

@@ -42,17 +42,14 @@ def test_error_table_torrance_sparrow_k3() -> None:
     alb = np.asarray(m.fit["albedo"])[:, 1]
     sw = m.weight.sum(axis=1)[:, 1]
     assert np.all(abs(sw / alb - 1.0)[deg <= 62.5] <= 0.025)
-    # interpolated mid-elevations: within 1.5x the larger neighbour from 37 degrees on; below, the K = 3 optimum
-    # switches basin once (one wide lobe -> two lobes across the plane of incidence, measured 4.2 % at 34 degrees
-    # between 1.5 % and 1.4 %, with the order that fits the mid-elevation best; 6.4 % with parameter matching alone),
-    # which interpolating parameters cannot follow -- reported, not hidden (a backward continuation with a
-    # Viterbi choice among candidates only moved the switch to 28 degrees, 3.3 %). The default fit (lobes added
-    # where needed, next test) meets the rule everywhere.
+    # interpolated mid-elevations within 1.5x the larger neighbour everywhere: the K = 3 optimum switches basin
+    # once (one wide lobe -> two lobes across the plane of incidence; 4.2 % at 34 degrees between 1.5 and 1.4 %,
+    # 2.8x, without relight.sgfit_refine), bridged by three inserted elevations (34.2, 35.0, 35.7 degrees;
+    # measured at most 1.19x; tests/relight/test_sgfit_refine.py covers other materials)
     mid = np.asarray(m.fit["mid_errors"])
     neigh = np.maximum(e[:-1], e[1:])
-    tail = np.degrees(np.asarray(m.fit["mid_elevations"])) > 37.0
-    assert np.all(mid[tail] <= 1.5 * neigh[tail]), (mid, neigh)
-    assert np.sum(mid > 1.5 * neigh) <= 1
+    assert np.all(mid <= 1.5 * neigh), (mid / neigh).round(2)
+    assert m.fit["elevations_fitted"] == 15 and 0 < m.fit["elevations_inserted"] <= 4
 
 
 def test_more_lobes_where_needed_beat_the_targets() -> None:
@@ -131,7 +128,7 @@ def test_merl_file_of_an_analytic_model_gives_the_same_fit(tmp_path: Path) -> No
 
 
 def test_json_round_trip_and_editing() -> None:
-    m = fit_gaussian_lobes(TS, FitSettings(elevations=3, theta_max=math.radians(40.0)))
+    m = fit_gaussian_lobes(TS, FitSettings(elevations=3, theta_max=math.radians(40.0), max_inserted=0))
     spec = m.spec()
     assert spec["kind"] == "gaussian-lobes" and len(spec["elevations"]) == 3
     e0 = spec["elevations"][0]

@@ -24,15 +24,21 @@ uniform highp sampler2DArray u_chain;
 uniform float u_chain_sigma0;
 uniform float u_chain_log_ratio;
 
-// The interval j (u_elevations[j] <= theta < u_elevations[j + 1]) and the fraction f within it.
+// The interval j (u_elevations[j] <= theta < u_elevations[j + 1], j <= N - 2) and the fraction f within it, by
+// bisection: ceil(log2(N - 1)) steps (the fit's elevations are not evenly spaced: relight.sgfit_refine inserts
+// some where interpolation fails, up to N = 39; a linear scan cost N - 2 compares per pixel).
 void gaussian_interval(float theta, out int j, out float f) {
     j = 0;
     f = 0.0;
 #if GAUSSIAN_N > 1
     float t = clamp(theta, u_elevations[0], u_elevations[GAUSSIAN_N - 1]);
-    for (int i = 1; i < GAUSSIAN_N - 1; ++i) {
-        if (t >= u_elevations[i]) {
-            j = i;
+    int hi = GAUSSIAN_N - 1;
+    while (hi - j > 1) {
+        int mid = (j + hi) / 2;
+        if (t >= u_elevations[mid]) {
+            j = mid;
+        } else {
+            hi = mid;
         }
     }
     f = (t - u_elevations[j]) / (u_elevations[j + 1] - u_elevations[j]);
