@@ -1,6 +1,7 @@
 """Seed-002 commands of the ``relight`` CLI (Green, Kautz & Durand 2007, §3.2, §4, §5.1).
 
-    relight fit BRDF_SPEC [--lobes K] [--elevations N] [--theta-max DEG] [--max-lobes M] --out FIT.json
+    relight fit BRDF_SPEC [--lobes K] [--elevations N] [--theta-max DEG] [--max-lobes M] [--max-inserted I]
+        --out FIT.json
         per-elevation Gaussian-lobe fit (``relight.sgfit``), K lobes plus up to M - K (default 2) only at
         elevations whose error exceeds 5 %; prints the error table; FIT.json is a
         ``gaussian-lobes`` material: {"kind", "elevations": [{"theta_o", "error", "lobes": [{"mu", "sigma",
@@ -35,7 +36,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
     brdf = parse_brdf(args.brdf)
     max_lobes = min(args.lobes + DEFAULT_EXTRA_LOBES, 8) if args.max_lobes is None else args.max_lobes
     st = FitSettings(lobes=args.lobes, elevations=args.elevations, theta_max=math.radians(args.theta_max),
-                     max_lobes=max(max_lobes, args.lobes) if args.max_lobes is None else max_lobes)
+                     max_lobes=max(max_lobes, args.lobes) if args.max_lobes is None else max_lobes,
+                     **({} if args.max_inserted is None else {"max_inserted": args.max_inserted}))
     mat = fit_gaussian_lobes(brdf, st)
     Path(args.out).write_text(json.dumps(mat.spec(), indent=1))
     print(error_table(mat))
@@ -164,6 +166,9 @@ def register(sub: Any) -> None:
     fp.add_argument("--max-lobes", type=int, default=None,
                     help="add lobes (up to this many; default lobes + 2) only at elevations whose error exceeds "
                          "5 %%; --max-lobes equal to --lobes gives the paper's fixed K")
+    fp.add_argument("--max-inserted", type=int, default=None,
+                    help="elevations the fit may add where interpolated lobes fail the mid-elevation rule "
+                         "(default 24; 0: exactly N elevations)")
     fp.add_argument("--out", required=True, help="FIT.json")
     fp.set_defaults(func=cmd_fit)
 

@@ -87,6 +87,8 @@ class FitSettings:
             raise InputError(f"fit: elevations must lie in [2, 64], got {self.elevations}")
         if not (math.isfinite(self.theta_max) and 0.0 < self.theta_max < math.pi / 2):
             raise InputError(f"fit: theta_max must lie in (0, pi/2) radians, got {self.theta_max!r}")
+        if not 0 <= self.max_inserted <= 64:
+            raise InputError(f"fit: max_inserted must lie in [0, 64], got {self.max_inserted}")
         ml = self.lobes if self.max_lobes is None else self.max_lobes
         if not self.lobes <= ml <= 8:
             raise InputError(f"fit: max_lobes must lie in [lobes, 8], got {self.max_lobes}")

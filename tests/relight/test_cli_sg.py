@@ -25,7 +25,9 @@ def test_fit_writes_the_contract(tmp_path: Path, capsys: pytest.CaptureFixture[s
     data = json.loads(out.read_text())
     assert data["kind"] == "gaussian-lobes"
     el = data["elevations"]
-    assert len(el) == 3 and el[0]["theta_o"] == 0.0 and el[-1]["theta_o"] == pytest.approx(math.radians(40))
+    # 3 fitted elevations, 20 degrees apart, and those the bisection inserted where interpolation failed
+    assert len(el) == 3 + data["fit"]["elevations_inserted"] and data["fit"]["elevations_fitted"] == 3
+    assert el[0]["theta_o"] == 0.0 and el[-1]["theta_o"] == pytest.approx(math.radians(40))
     for e in el:
         assert 0.0 <= e["error"] < 0.05 and len(e["lobes"]) == 2
         for lobe in e["lobes"]:
@@ -35,6 +37,10 @@ def test_fit_writes_the_contract(tmp_path: Path, capsys: pytest.CaptureFixture[s
                  "--out", str(tmp_path / "again.json")]) == 0
     again = json.loads((tmp_path / "again.json").read_text())
     assert max(e["error"] for e in again["elevations"]) < 1e-3
+    # --max-inserted 0: exactly the N elevations asked for
+    assert main(["fit", "torrance-sparrow:alpha=0.2,fresnel=none", "--lobes", "2", "--elevations", "3",
+                 "--theta-max", "40", "--max-inserted", "0", "--out", str(tmp_path / "n.json")]) == 0
+    assert len(json.loads((tmp_path / "n.json").read_text())["elevations"]) == 3
 
 
 def test_chain_writes_levels(tmp_path: Path) -> None:

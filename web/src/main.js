@@ -5,6 +5,7 @@ import { compare } from './compare.js';
 import { modelsFromOpenapi, specFor } from './materials.js';
 import { loadFile, loadSample } from './objects.js';
 import { exampleScene, parseScene, sceneItems, showScene } from './scene.js';
+import { initGaussianPanel } from './gaussian_panel.js';
 import { initShadows } from './shadows.js';
 import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
@@ -568,6 +569,7 @@ async function main() {
     showError('envmap-error', err);
   }
   await initShadows(state, $, showError);
+  initGaussianPanel(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
     await loadResult(fromUrl).catch((err) => showError('plan-error', err));
