@@ -82,10 +82,11 @@ def test_gaussian_panel_switches_edits_and_charts(page: Any, tmp_path: Any) -> N
     assert lobe != 0  # mu at theta_o = 0 was 0: the edit moved it (float16 bits of 5 degrees in radians)
 
     # ---- charts: error vs theta_o (fitted and interpolated mid-elevations), mu, sigma and weight vs theta_o
-    n = page.evaluate("window.relight.gaussian.materials.get(window.relight.gaussian.current).elevations.length")
+    n, k = page.evaluate("""() => { const m = window.relight.gaussian.materials.get(window.relight.gaussian.current);
+        return [m.elevations.length, m.lobes]; }""")
     charts = page.evaluate("""() => [...document.querySelectorAll('#sg-charts svg')].map(
         (s) => [...s.querySelectorAll('polyline.series')].map((p) => p.getAttribute('points').split(' ').length))""")
     assert len(charts) == 4 and charts[0] == [n, n - 1], charts
-    assert all(c == [n, n] for c in charts[1:]), charts
+    assert all(c == [n] * k for c in charts[1:]), charts  # one series per lobe (K = 2, up to 4 where needed)
     page.evaluate("document.getElementById('gaussian-panel').scrollIntoView()")
     screenshot(page, "viewer-gaussian-panel")

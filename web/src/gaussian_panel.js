@@ -24,7 +24,7 @@ const HTML = `
     N <input id="sg-elevations" type="number" min="2" max="64" value="15" aria-label="elevations">
     <button id="sg-fit" type="button">Fit</button>
     <button id="sg-chain" type="button">Chain for this map</button></div>
-  <div id="sg-materials" class="row" role="group" aria-label="fitted materials"></div>
+  <div id="sg-materials" class="row" style="flex-wrap: wrap" role="group" aria-label="fitted materials"></div>
   <canvas id="sg-canvas" width="${SIZE}" height="${SIZE}" aria-label="Gaussian-lobe sphere"></canvas>
   <div class="row">elevation <select id="sg-elev" aria-label="elevation"></select>
     lobe <select id="sg-lobe" aria-label="lobe"></select></div>
