@@ -62,6 +62,19 @@ class BandSums:
         return np.asarray(np.sqrt((n - 1) / n * np.sum((loo - loo.mean(axis=1, keepdims=True)) ** 2, axis=1)),
                           dtype=np.float64)
 
+    def merged(self, other: BandSums) -> BandSums:
+        """These sums and ``other``'s (more views of the same bands) as one measurement."""
+        if other.bands != self.bands:
+            raise ValueError(f"cannot merge measurements of bands {self.bands} and {other.bands}")
+
+        def cat(a: FloatArray | None, b: FloatArray | None) -> FloatArray | None:
+            return None if a is None or b is None else np.concatenate([a, b], axis=1)
+
+        return BandSums(bands=self.bands, err=self.err + other.err, ref=self.ref + other.ref,
+                        texels=self.texels + other.texels, min_value=np.minimum(self.min_value, other.min_value),
+                        negatives=self.negatives + other.negatives, err_views=cat(self.err_views, other.err_views),
+                        ref_views=cat(self.ref_views, other.ref_views))
+
     @property
     def rms(self) -> FloatArray:
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -114,11 +127,17 @@ def measure_by_view(shrm: Any, pixels: NDArray[np.floating], brdf: Any, views: N
 
 
 def sample_by_view(shrm: Any, pixels: NDArray[np.floating], brdf: Any, bands: Sequence[tuple[float, float]], *,
-                   views: int = 48, per_view: int = 6, seed: int = 0, clamp: bool = True) -> BandSums:
-    """Like :func:`measure_by_view` at a fraction of the cost, for orientation averages: per band, ``views``
-    directions spread over the sphere and, for each, ``per_view`` texels of the SHRM's own grid drawn at random among
+                   views: int = 100, per_view: int = 24, seed: int = 0, clamp: bool = True) -> BandSums:
+    """Like :func:`measure_by_view` at a fraction of the cost, for orientation averages: ``views`` directions spread
+    over the sphere and, for each view and band, ``per_view`` texels of the SHRM's own grid drawn at random among
     those whose N.V lies in the band (weighted by their solid angle). The SHRM is read at texel centres (eq. 12,
-    no interpolation); the brute force is ``reflected_radiance`` at the same normals and view."""
+    no interpolation) once per view; the brute force is one ``reflected_radiance`` call per view at the normals of
+    every band's texels.
+
+    The defaults (2400 texels per band) keep the jackknife standard error within about a quarter of the measured
+    figure on a map whose lamps are single pixels (city at 64 rows: 48 views of 6 texels left it above the figure
+    itself, the error being carried by the few orientations that put a lamp in the lobe).
+    """
     from relight.reference_view import reflected_radiance
     from relight.shrm import reflect
     from relight.shrm.geometry import halfway_normals
@@ -128,27 +147,29 @@ def sample_by_view(shrm: Any, pixels: NDArray[np.floating], brdf: Any, bands: Se
     dom = np.broadcast_to(pixel_solid_angles(s, 2 * s)[:, None], (s, 2 * s)).reshape(-1)
     rng = np.random.default_rng(seed)
     nb = len(bands)
-    err, ref = np.zeros(nb), np.zeros(nb)
     cnt, neg = np.zeros(nb, dtype=np.intp), np.zeros(nb, dtype=np.intp)
     mins = np.zeros(nb)
     err_v, ref_v = np.zeros((nb, views)), np.zeros((nb, views))
-    for b, (lo, hi) in enumerate(bands):
-        for j, v in enumerate(spread_views(views, seed=seed + 7 * b + 1)):
-            ndv = np.sqrt(np.clip((1.0 + r @ v) / 2.0, 0.0, 1.0))
+    for j, v in enumerate(spread_views(views, seed=seed + 1)):
+        ndv = np.sqrt(np.clip((1.0 + r @ v) / 2.0, 0.0, 1.0))
+        picks, owner = [], []
+        for b, (lo, hi) in enumerate(bands):
             cand = np.nonzero((ndv >= lo) & ((ndv < hi) if hi < 1.0 else (ndv <= hi)) & (ndv > 1e-6))[0]
-            if cand.size == 0:
-                continue
-            pick = rng.choice(cand, size=min(per_view, cand.size), replace=False)
-            a = reflect(shrm, v, clamp=clamp).reshape(-1, 3)[pick]
-            n, _ = halfway_normals(r[pick], v)
-            t = reflected_radiance(pixels, brdf, n, v)
-            ya, yr = luminance(a), luminance(t)
-            err_v[b, j] = float(np.sum(dom[pick] * (ya - yr) ** 2))
-            ref_v[b, j] = float(np.sum(dom[pick] * yr**2))
-            err[b] += err_v[b, j]
-            ref[b] += ref_v[b, j]
-            cnt[b] += pick.size
-            mins[b] = min(mins[b], float(a.min()))
-            neg[b] += int(np.count_nonzero(a.min(axis=-1) < 0.0))
-    return BandSums(bands=tuple((float(lo), float(hi)) for lo, hi in bands), err=err, ref=ref, texels=cnt,
-                    min_value=mins, negatives=neg, err_views=err_v, ref_views=ref_v)
+            if cand.size:
+                picks.append(rng.choice(cand, size=min(per_view, cand.size), replace=False))
+                owner.append(np.full(picks[-1].size, b))
+        if not picks:
+            continue
+        pick, band = np.concatenate(picks), np.concatenate(owner)
+        a = reflect(shrm, v, clamp=clamp).reshape(-1, 3)[pick]
+        n, _ = halfway_normals(r[pick], v)
+        t = reflected_radiance(pixels, brdf, n, v)
+        ya, yr = luminance(a), luminance(t)
+        np.add.at(err_v[:, j], band, dom[pick] * (ya - yr) ** 2)
+        np.add.at(ref_v[:, j], band, dom[pick] * yr**2)
+        np.add.at(cnt, band, 1)
+        np.minimum.at(mins, band, a.min(axis=-1))
+        np.add.at(neg, band, (a.min(axis=-1) < 0.0).astype(np.intp))
+    return BandSums(bands=tuple((float(lo), float(hi)) for lo, hi in bands), err=err_v.sum(axis=1),
+                    ref=ref_v.sum(axis=1), texels=cnt, min_value=np.minimum(mins, 0.0), negatives=neg,
+                    err_views=err_v, ref_views=ref_v)

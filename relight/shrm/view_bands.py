@@ -13,14 +13,22 @@ A band's relative RMS is ``sqrt(int_band e / int_band energy)`` over ``d cos the
 reflection map, eq. 12, whose view cosine falls in the band). The figures per band:
 
 * ``rms_average`` — the estimate of that orientation average: the sums run to ``L* = min(F_spectrum, lighting
-  order)`` with the lighting's own band energies; beyond L* App. B's step bounds the rest,
-  ``Lambda_{L*+1}^2 (L_tot - sum_{l <= L*} E^L_l) (K - sum_{l <= L*} K_l)`` (``Lambda_l`` decreases and every
-  term is non-negative), in numerator and denominator;
+  order)`` with the lighting's own band energies; beyond L* the lighting's level ``Lambda_l^2 E^L_l`` is continued
+  flat at its mean over ``L*/2 < l <= L*`` (:func:`lighting_level`) and multiplies what the lobe holds beyond L*,
+  ``K - sum_{l <= L*} K_l``, in numerator and denominator. Flat, because the brute force the SHRM is measured against
+  (and every renderer) integrates the map's pixels as point samples: ``Lambda_l^2 E^L_l = sum_{j,k} w_j w_k
+  P_l(cos gamma_jk)`` (``w_k`` a pixel's radiance times its solid angle) does not decay beyond the map's order
+  ``H - 1`` but tends to the level ``sum_k w_k^2`` of its single pixels, which a map with point-like lamps reaches
+  already below H (city: 45 % of its energy beyond l = 63 at 64 rows). App. B's step (all the lighting's remaining
+  energy at ``L* + 1``) had over-predicted city by up to 7 times (``docs/accuracy/grazing.md``); on a smooth map the
+  continued level over-estimates a decaying tail, which then meets a lobe that holds little beyond L*;
 * ``rms`` — the prediction: ``VIEW_MARGIN`` (1.5) times ``rms_average``. One map seen from a few views samples
-  only some orientations of its lighting: on the sample maps the measured band error stayed within 0.83–1.76 times
-  ``rms_average`` (48 views per band, jackknife standard errors 5–15 %; ``docs/accuracy/grazing.md``), so the
-  margin keeps the prediction above what is measured while staying within 3 times it (issue 18's test);
-* ``rms_appendix_b`` — App. B's bound: ``sum_{l > F}`` replaced by that step at F + 1 and the denominator by the
+  only some orientations of its lighting: on five sample maps at 64 rows the measured band error stayed within
+  0.76–1.15 times ``rms_average`` (2400 texels of 100 views per band, jackknife standard errors 3–25 %;
+  ``docs/accuracy/grazing.md``), so the margin keeps the prediction above what is measured while staying within
+  3 times it (issue 18's test, ``tests/relight/test_view_bands.py``);
+* ``rms_appendix_b`` — App. B's bound: ``sum_{l > F}`` replaced by its step at F + 1,
+  ``Lambda_{F+1}^2 (L_tot - sum_{l <= F} E^L_l) (K - sum_{l <= F} K_l)``, and the denominator by the
   energy the bands l <= F carry, a lower bound of the true energy (1 when that is 0); never below
   ``rms_average``.
 
@@ -61,6 +69,16 @@ class Lighting(Protocol):
     def total_energy(self) -> float: ...
 
     def band_energy(self) -> NDArray[np.float64]: ...
+
+
+def lighting_level(lam2: FloatArray, e_light: FloatArray, l_star: int, l_max: int) -> float:
+    """``Lambda_l^2 E^L_l`` continued beyond ``l_star``: its mean over the known bands ``l_star / 2 < l <= l_max``
+    (module docstring: a map's pixels keep this level to every order)."""
+    lo = l_star // 2 + 1
+    n = min(l_max, lam2.size - 1, e_light.size - 1)
+    if n < lo:
+        return float(lam2[min(n, lam2.size - 1)] * e_light[n]) if n >= 0 else 0.0
+    return float(np.mean(lam2[lo : n + 1] * e_light[lo : n + 1]))
 
 
 def brdf_band_epsilon(spec: ViewSpectrum, p_order: int, f_max: int | None = None, *,
@@ -105,7 +123,7 @@ def predicted_by_view(
     l_tot = float(lighting.total_energy)
     l_star = min(spec.F, int(lighting.lmax))
     f_b_l = min(f_b, l_star)
-    lam2 = lambda_l(max(spec.F, f_b) + 1) ** 2
+    lam2 = lambda_l(max(spec.F, f_b, int(lighting.lmax)) + 1) ** 2
     a = lam2[: l_star + 1] * e_light[: l_star + 1]
     k_l = spec.band_energy_per_view()  # (F+1, n_o, C)
     d_l = spec.truncation_error_per_view(p_b, window)
@@ -117,7 +135,7 @@ def predicted_by_view(
         rest_k = np.clip(spec.k_tot - k_cum[order], 0.0, None)
         return np.asarray(lam2[order + 1] * rest_l * rest_k, dtype=np.float64)
 
-    tail = step(l_star)
+    tail = lighting_level(lam2, e_light, l_star, int(lighting.lmax)) * np.clip(spec.k_tot - k_cum[l_star], 0.0, None)
     num = np.einsum("l,loc->oc", a[: f_b_l + 1], d_l[: f_b_l + 1])
     num += np.einsum("l,loc->oc", a[f_b_l + 1 :], k_l[f_b_l + 1 : l_star + 1]) + tail
     den = np.einsum("l,loc->oc", a, k_l[: l_star + 1]) + tail

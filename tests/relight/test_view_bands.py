@@ -114,34 +114,60 @@ def test_search_says_which_band_cannot_be_met() -> None:
     assert np.all(eps[on] <= 0.01 + 2e-4), eps
 
 
-CASES = [("phong:s=64", 8, 0), ("microfacet:sigma=0.2", 10, 3), ("ggx:alpha=0.3", 10, 4),
-         ("torrance-sparrow:alpha=0.3", 10, 4)]
+CASES = [("phong:s=64", 16, 0), ("microfacet:sigma=0.1", 40, 8), ("ggx:alpha=0.3", 20, 6),
+         ("torrance-sparrow:alpha=0.3", 20, 6)]
 BANDS = ((0.0, 0.1), (0.1, 0.3), (0.3, 0.7), (0.7, 1.0))
+#: A measurement resolves the 3x rule when its standard error is at most this share of it (derivation below).
+RESOLVED = 1.0 / 3.0
+#: Rounds of 100 views (seeds 0, 1, ...) before a band must be resolved.
+MAX_ROUNDS = 4
 
 
-@pytest.mark.parametrize("name", ["city", "courtyard"])
+def measure_resolved(sm: object, px: np.ndarray, lobe: object) -> tuple[np.ndarray, np.ndarray]:
+    """Per band: the measured relative RMS and its jackknife standard error, adding rounds of 100 views (12
+    texels per band each) until every band's standard error is at most RESOLVED times its value."""
+    meas = sample_by_view(sm, px, lobe, BANDS, views=100, per_view=12, seed=0)
+    for seed in range(1, MAX_ROUNDS):
+        if np.all(meas.standard_error() <= RESOLVED * meas.rms):
+            break
+        meas = meas.merged(sample_by_view(sm, px, lobe, BANDS, views=100, per_view=12, seed=seed))
+    return meas.rms, meas.standard_error()
+
+
+@pytest.mark.parametrize("name", ["city", "courtyard", "sunset"])
 @pytest.mark.parametrize(("spec", "f", "p"), CASES)
 def test_prediction_brackets_the_brute_force(name: str, spec: str, f: int, p: int) -> None:
     """Per view band, down to N.V = 0: measured <= predicted <= 3 measured + 0.005 (issue 18), measured against
-    the angular brute force at 48 views spread over the sphere per band (6 texels each, relight.view_error).
-    The measurement samples orientations of the lighting, so "measured <= predicted" is checked up to its own noise
-    (two jackknife standard errors), and on the orientation average the prediction is built on (predicted /
-    VIEW_MARGIN), not on the margin: a wrong average fails. (Above, the average is conservative by construction:
-    App. B's step puts the lighting beyond the map's order at l = H.) 32 x 64 maps keep it cheap."""
-    px = _map(name, 32)
+    the angular brute force (relight.reference_view, the map's pixels as point samples) at texels of views spread
+    over the sphere (relight.view_error), on 64 x 128 maps: city (single-pixel lamps: 45 % of its energy beyond the
+    map's order l = 63), courtyard (smooth sky) and sunset (a sun).
+
+    Why 3 holds for a right prediction and fails a wrong one: the prediction is ``rms = 1.5 A`` with A the
+    orientation average of the error (relight.shrm.view_bands). The measurement m estimates A with standard error
+    s; the test first samples until s <= m / 3 (RESOLVED; city's lamps and sunset's sun leave s near m after 48
+    views of 6 texels: a band's error is carried by the few orientations that put a light in the lobe). A right A
+    lies within 2 s of m, so ``rms = 1.5 A <= 1.5 (m + 2 m / 3) = 2.5 m``: the factor 3 leaves m / 2 for the model's
+    own approximations (the lighting's level continued flat beyond the map's order over-estimates a decaying tail;
+    the view quadrature), and a prediction off by more fails (App. B's step in place of the flat continuation gave
+    up to 6.9 m on city, docs/accuracy/grazing.md). The other side, m <= rms, is the margin's own claim (1.5 above
+    every measured / average ratio seen, 0.76-1.25 on five maps) and is asserted as the issue states it.
+    px = _map(name, 64)
     lobe = parse_brdf(spec)
-    sm = create_shrm(px, lobe, order=f, p_order=p, size=32)
-    meas = sample_by_view(sm, px, lobe, BANDS, views=48, per_view=6)
+    sm = create_shrm(px, lobe, order=f, p_order=p, size=64)
+    m, se = measure_resolved(sm, px, lobe)
+    assert np.all(se <= RESOLVED * m), (m, se)
     from relight.prefilter import project_lighting
     from relight.shrm.creation import spectrum_order
 
-    vs = order_search.cached_spectrum(lobe, spectrum_order(f, 31), p, band_edges(0.1))
-    pred = predicted_by_view(vs, project_lighting(px, min(vs.F, 31)), f, p, bands=BANDS)
-    se = meas.standard_error()
-    for b, m, s in zip(pred, meas.rms, se, strict=True):
-        assert b.rms <= 3.0 * m + 0.005, (b.ndotv, m, b.rms)
-        assert b.rms_average >= m - 2.0 * s, (b.ndotv, m, s, b.rms_average)
+    vs = order_search.cached_spectrum(lobe, spectrum_order(f, 63), p, band_edges(0.1))
+    pred = predicted_by_view(vs, project_lighting(px, min(vs.F, 63)), f, p, bands=BANDS)
+    for b, mb in zip(pred, m, strict=True):
+        assert mb <= b.rms <= 3.0 * mb + 0.005, (b.ndotv, mb, b.rms)
         assert b.rms == pytest.approx(VIEW_MARGIN * b.rms_average)
+    # the report's own by_view (create_shrm) is the same prediction for its bands
+    rep = sm.report["components"][0]["predicted"]["by_view"]
+    mine = predicted_by_view(vs, project_lighting(px, min(vs.F, 63)), f, p, bands=[tuple(x["ndotv"]) for x in rep])
+    assert [x["rms"] for x in rep] == pytest.approx([b.rms for b in mine], rel=1e-9)
 
 
 def test_report_carries_by_view_and_no_negative_radiance() -> None:
