@@ -9,11 +9,11 @@ For each sample map (area-averaged to ``--rows`` rows), BRDF and tolerance:
   report's per-band ``rms`` / ``rms_average`` / ``rms_appendix_b`` (``relight.shrm.view_bands``).
 
 Measured: the relative RMS per band N.V in [0, 0.1], [0.1, 0.3], [0.3, 0.7], [0.7, 1] against the angular brute
-force (``relight.view_error.sample_by_view``: per band 48 views spread over the sphere, 6 texels each, with the
-jackknife standard error), the SHRM read at its own texel centres (``--size`` rows). Prints markdown tables and
-writes JSON (``bench/results/grazing_accuracy.json``).
+force (``relight.view_error.sample_by_view``: ``--views`` views spread over the sphere, ``--per-view`` texels of
+each per band, with the jackknife standard error), the SHRM read at its own texel centres (``--size`` rows).
+Prints markdown tables and writes JSON (``bench/results/grazing_accuracy.json``).
 
-    .venv/bin/python bench/grazing_accuracy.py [--rows 64] [--size 64] [--limit 60]
+    .venv/bin/python bench/grazing_accuracy.py [--rows 64] [--size 64] [--limit 60] [--views 100] [--per-view 12]
 """
 
 from __future__ import annotations
@@ -86,13 +86,13 @@ def after_prediction(px: np.ndarray, lobe: Any, eps: float, size: int, f_b: int,
 
     f_cap = px.shape[0] - 1
     spec = res.spectrum
-    if spec.F < spectrum_order(f_b, f_cap):  # as create_shrm: the prediction's spectrum reaches spectrum_order(F_B)
-        spec = order_search.cached_spectrum(lobe, spectrum_order(f_b, f_cap), p_b, band_edges(limit))
+    if spec.F < spectrum_order(res.F, f_cap):  # as create_shrm: the prediction's spectrum reaches spectrum_order(F)
+        spec = order_search.cached_spectrum(lobe, spectrum_order(res.F, f_cap), res.P, band_edges(limit))
     lig = project_lighting(px, min(max(res.F, spec.F), f_cap))
     return predicted_by_view(spec, lig, f_b, p_b, bands=BANDS)
 
 
-def run(rows: int, size: int, limit: float) -> list[dict[str, Any]]:
+def run(rows: int, size: int, limit: float, views: int, per_view: int) -> list[dict[str, Any]]:
     from relight.brdf.spec import parse_brdf
     from relight.orders import order_for_tolerance
     from relight.prefilter import project_lighting
@@ -110,7 +110,7 @@ def run(rows: int, size: int, limit: float) -> list[dict[str, Any]]:
                 t = time.perf_counter()
                 sm = create_shrm(px, lobe, epsilon=eps, size=size)
                 c = sm.components[0]
-                meas = sample_by_view(sm, px, lobe, BANDS)
+                meas = sample_by_view(sm, px, lobe, BANDS, views=views, per_view=per_view)
                 pred = after_prediction(px, lobe, eps, size, c.F, c.P)
                 row["after"] = {
                     "F_B": c.F, "P_B": c.P, "tolerance_met": c.report["orders"].get("tolerance_met"),
@@ -127,7 +127,7 @@ def run(rows: int, size: int, limit: float) -> list[dict[str, Any]]:
                     f_l = order_for_tolerance(lig.band_energy(), lig.total_energy, eps)
                     f_b = min(old[0], rows - 1, f_l if f_l is not None else old[0])
                     smo = create_shrm(px, lobe, order=f_b, p_order=old[1], size=size)
-                    mo = sample_by_view(smo, px, lobe, BANDS, clamp=False)
+                    mo = sample_by_view(smo, px, lobe, BANDS, clamp=False, views=views, per_view=per_view)
                     po = smo.report["predicted"]
                     row["before"] = {
                         "F_B": f_b, "P_B": old[1], "tolerance_met": old[2], "measured": mo.rms.tolist(),
@@ -145,8 +145,9 @@ def table(rows: list[dict[str, Any]]) -> str:
         return "-" if x is None else f"{100 * x:.3g}"
 
     lines = ["| map | BRDF | eps | before F, P | before predicted (whole field) | before measured per band "
-             "| after F, P | after predicted rms per band | after measured per band (± s.e.) | met |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| after F, P | after predicted rms per band | after measured per band (± s.e.) | after rms / measured "
+             "| met |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         b, a = r["before"], r["after"]
         if "timed_out" in b:
@@ -156,8 +157,9 @@ def table(rows: list[dict[str, Any]]) -> str:
             bpred = f"{pct(b['rms_min_of_errors'])} (B {pct(b['rms_appendix_b'])})"
             bmeas = " / ".join(pct(x) for x in b["measured"])
         amea = " / ".join(f"{pct(x)}±{pct(s)}" for x, s in zip(a["measured"], a["measured_se"], strict=True))
+        ratio = " / ".join("-" if m <= 0 else f"{p / m:.2f}" for p, m in zip(a["rms"], a["measured"], strict=True))
         lines.append(f"| {r['map']} | {r['brdf']} | {r['epsilon']:g} | {bfp} | {bpred} | {bmeas} | "
-                     f"{a['F_B']}, {a['P_B']} | {' / '.join(pct(x) for x in a['rms'])} | {amea} | "
+                     f"{a['F_B']}, {a['P_B']} | {' / '.join(pct(x) for x in a['rms'])} | {amea} | {ratio} | "
                      f"{a['tolerance_met']} |")
     return "\n".join(lines)
 
@@ -167,14 +169,17 @@ def main() -> None:
     ap.add_argument("--rows", type=int, default=64)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--limit", type=float, default=60.0)
+    ap.add_argument("--views", type=int, default=100, help="views spread over the sphere (all bands)")
+    ap.add_argument("--per-view", type=int, default=12, help="texels per view and band")
     ap.add_argument("--json", default=str(ROOT / "bench" / "results" / "grazing_accuracy.json"))
     args = ap.parse_args()
-    rows = run(args.rows, args.size, args.limit)
+    rows = run(args.rows, args.size, args.limit, args.views, args.per_view)
     print("\nRelative RMS in %, per band N.V in [0, 0.1] / [0.1, 0.3] / [0.3, 0.7] / [0.7, 1]\n")
     print(table(rows))
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"rows": args.rows, "size": args.size, "bands": BANDS, "cases": rows}, indent=1))
+    meta = {"rows": args.rows, "size": args.size, "views": args.views, "per_view": args.per_view, "bands": BANDS}
+    out.write_text(json.dumps({**meta, "cases": rows}, indent=1))
     print(f"\nwrote {out}")
 
 

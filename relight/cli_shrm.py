@@ -73,6 +73,8 @@ def prefilter_shrm(
     pred = shrm.report.predicted
     rim = pred.by_view[0] if pred.by_view else None
     unmet = [b for c in shrm.report.components for b in c.orders.get("unmet_bands", [])]
+    reach = {tuple(a["ndotv"]): a["epsilon_brdf"] for c in shrm.report.components
+             for a in c.orders.get("achievable_by_view", [])}
     print(
         f"wrote {args.out} (+ {sidecar_path(args.out).name}): SHRM {shrm.height}x{shrm.width}, "
         f"{shrm.report.output['maps']} maps [{orders}], predicted relative RMS {pred.rms_brdf:.3g} "
@@ -80,9 +82,11 @@ def prefilter_shrm(
         + (f"; N.V in {rim.ndotv[0]:g}-{rim.ndotv[1]:g}: {rim.rms:.3g}" if rim is not None else "")
         + f"), {shrm.report.total_seconds:.3f} s"
     )
-    if unmet:
-        print(f"tolerance not met for N.V in {', '.join(f'[{a:g}, {b:g}]' for a, b in unmet)} within P <= 16 "
-              "(the report's orders.achievable_by_view says what can be reached)")
+    if unmet:  # issue 18: which bands cannot meet the tolerance within the caps, and what each can reach
+        bands = ", ".join(f"[{a:g}, {b:g}]" + (f" (reaches {reach[(a, b)]:.2g})" if (a, b) in reach else "")
+                          for a, b in unmet)
+        print(f"tolerance {shrm.report.epsilon:g} not met for N.V in {bands} within P <= 16 "
+              "(orders.achievable_by_view in the report)")
     return 0
 
 

@@ -61,6 +61,25 @@ def test_prefilter_reflect_render_end_to_end(small_env: Path, tmp_path: Path,
     assert np.abs(loc - img).max() < 0.05 * img.max()
 
 
+def test_prefilter_names_the_bands_it_cannot_meet(small_env: Path, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 18: Torrance-Sparrow alpha = 0.2 at epsilon = 0.01 cannot meet it at N.V in [0.1, 0.2] within P <= 16
+    (relight.shrm.order_search): the CLI says so with what the band reaches (the report's achievable_by_view), and
+    the --report JSON's by_view marks the band unmet with that figure; it answers in seconds, not minutes."""
+    out, rep = tmp_path / "ts.exr", tmp_path / "ts.json"
+    assert main(["prefilter", str(small_env), "--brdf", "torrance-sparrow:alpha=0.2", "--epsilon", "0.01",
+                 "--size", "16", "--out", str(out), "--report", str(rep)]) == 0
+    text = capsys.readouterr().out
+    report = json.loads(rep.read_text())
+    orders = report["components"][0]["report"]["orders"]
+    assert orders["tolerance_met"] is False and [0.1, 0.2] in orders["unmet_bands"]
+    reach = {tuple(a["ndotv"]): a["epsilon_brdf"] for a in orders["achievable_by_view"]}
+    assert reach[(0.1, 0.2)] > 0.01
+    assert f"tolerance 0.01 not met for N.V in [0.1, 0.2] (reaches {reach[(0.1, 0.2)]:.2g})" in text, text
+    rim = report["predicted"]["by_view"][0]
+    assert rim["enforced"] and rim["met"] is False and rim["achievable_epsilon_brdf"] >= reach[(0.1, 0.2)]
+
+
 def test_prefilter_with_epsilon_and_sum_of_lobes(small_env: Path, tmp_path: Path,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "e.exr"

@@ -168,6 +168,18 @@ def test_slider_changes_the_plan(page: Any, tmp_path: Any) -> None:
     page.wait_for_function("(t) => document.getElementById('plan').innerText !== t", arg=second, timeout=60_000)
     assert "predicted error" in plan_text(page)
     screenshot(page, "viewer_plan")
+    # issue 18: a sharp general lobe at a tight tolerance: the plan says which band cannot be met, and what it
+    # can reach, before anything is computed (the same figures as the API's predicted_error.by_view)
+    third = plan_text(page)
+    page.select_option("#brdf-kind", "torrance-sparrow")
+    page.wait_for_function("(t) => document.getElementById('plan').innerText !== t", arg=third, timeout=60_000)
+    page.wait_for_function("/not met/.test(document.getElementById('plan').innerText)", timeout=60_000)
+    bands = page.evaluate("window.relight.plan.predicted_error.by_view")
+    unmet = [b for b in bands if b.get("enforced") and b.get("met") is False]
+    assert unmet and all(b["achievable_epsilon_brdf"] > 10 ** -3.5 for b in unmet), bands
+    lo, hi = unmet[0]["ndotv"]
+    assert re.search(rf"N·V {lo:g}–{hi:g}: [\d.e+]+ % \(ε not met; reaches ε [\d.e-]+\)", plan_text(page)), \
+        plan_text(page)
 
 
 def test_bad_upload_shows_the_problem_detail(page: Any, viewer_server: Server) -> None:

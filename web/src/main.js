@@ -153,6 +153,17 @@ function materialChanged() {
   planTimer = setTimeout(updatePlan, 200);
 }
 
+// One band of predicted_error.by_view (issue 18): its predicted error and, when the tolerance is enforced there but
+// cannot be met within the caps, that it is not and the smallest BRDF error the band can reach.
+function viewBandText(b) {
+  const text = `N·V ${b.ndotv[0]}–${b.ndotv[1]}: ${fmtPercent(b.rms)}`;
+  if (b.enforced && b.met === false) {
+    const best = b.achievable_epsilon_brdf;
+    return `${text} (ε not met${best != null ? `; reaches ε ${Number(best).toPrecision(2)}` : ''})`;
+  }
+  return text;
+}
+
 function showPlan(plan) {
   const o = plan.orders;
   const e = plan.predicted_error;
@@ -163,8 +174,7 @@ function showPlan(plan) {
     ['orders', `F_B = ${o.F_B}, P_B = ${o.P_B}`],
     ['predicted time', fmtSeconds(plan.predicted_seconds)],
     ['predicted error', `${fmtPercent(e.rms_min_of_errors)} RMS (bound ${fmtPercent(e.rms_appendix_b)})`],
-    ...(e.by_view ? [['error by view', e.by_view.map((b) => `N·V ${b.ndotv[0]}–${b.ndotv[1]}: ${fmtPercent(b.rms)}`)
-      .join(', ')]] : []),
+    ...(e.by_view ? [['error by view', e.by_view.map(viewBandText).join(', ')]] : []),
     ['output', `${plan.output.height} × ${plan.output.width} × ${plan.output.layers} layers`],
     ['cached', plan.cached ? 'yes — appears instantly' : 'no'],
   ];
