@@ -24,6 +24,8 @@ from relight.reference_view import reference_view
 DATA = Path(__file__).resolve().parents[2] / "data" / "envmaps"
 S = 32  # output rows of the accuracy tests
 VIEWS = [(0.0, 0.0, 1.0), (0.2, 0.95, 0.1), (-0.6, -0.3, 0.7)]
+#: A single view's band error against the predicted orientation average's ``rms`` (check_against_reference).
+SINGLE_VIEW = 3.0
 
 
 @cache
@@ -53,8 +55,16 @@ def check_against_reference(spec: str, view: tuple[float, float, float], f_hi: i
                              tol_89: float = 0.035, tol_80: float = 0.02, env_rows: int = 64) -> None:
     """The eq. 12 map of SHRMs for one view against ``reference_view``; tolerances:
 
-    * orders chosen for epsilon = 0.03: relative RMS over 0-89 degrees <= the predicted sqrt(epsilon_brdf) (seed 000
-      §5.1 uses the BRDF error as a conservative estimate of the light field's);
+    * orders chosen for epsilon = 0.03: per band of the report's ``predicted.by_view`` (issue 18; N.V in [0, 0.3],
+      [0.3, 0.7], [0.7, 1], i.e. angles between N and V of 72.5-90, 45.6-72.5 and 0-45.6 degrees) the view's relative
+      RMS m is at most ``SINGLE_VIEW`` (3) times the predicted ``rms`` in every band, and at least ``rms / 3 -
+      0.005 / 3`` in the bands N.V >= 0.3. One view is one slice of the lighting's orientations, not their average
+      (which tests/relight/test_view_bands.py holds to [m, 3 m + 0.005] in every band, rim included): over 40 views
+      of courtyard (microfacet sigma = 0.1, whole rings of 400 texels per band) a single view's band error spread
+      over 0.52-1.57 times ``rms`` above N.V = 0.3, hence 3 both ways there, and over 0.36-2.65 times at the rim,
+      where one view can fall further below (0.30 for sigma = 0.2 at VIEWS[1]): there only the upper side holds
+      for a single view. (Before issue 18 the check was m <= sqrt(epsilon_brdf) over 0-89 degrees, 4-10 times above
+      the measurement and with no lower side: a prediction ten times too large passed.)
     * generous orders (F_hi, P_hi): below ``tol_89`` over 0-89 degrees and ``tol_80`` over 0-80 degrees (measured
       1-2.5 % and 0.5-1.5 % for microfacet at P = 12, 2.5-3.7 % and 1-2 % for skin at P = 16);
     * grazing band 70-89 degrees: the error falls by at least 30 % from P = 4 to P_hi — near grazing rho_hat varies
@@ -66,10 +76,14 @@ def check_against_reference(spec: str, view: tuple[float, float, float], f_hi: i
     ref = reference_view(e, lobe, v, size)
     assert np.all(np.isfinite(ref)) and ref.max() > 0
     sm = shrm.create_shrm(e, lobe, epsilon=0.03, size=size)
-    pred = sm.report["predicted"]["rms_brdf"]
-    assert 0.0 < pred < 0.2  # sqrt(0.03) ~ 0.17
-    err = masked_rms(shrm.reflect(sm, v), ref, v)
-    assert err <= pred, f"{spec} view {view}: measured {err:.4f} > predicted {pred:.4f}"
+    got = shrm.reflect(sm, v)
+    for band in sm.report["predicted"]["by_view"]:
+        lo, hi = band["ndotv"]
+        m = masked_rms(got, ref, v, lo_deg=float(np.degrees(np.arccos(hi))), hi_deg=float(np.degrees(np.arccos(lo))))
+        rms = band["rms"]
+        assert m <= SINGLE_VIEW * rms, (spec, view, band["ndotv"], m, rms)
+        if lo >= 0.3:
+            assert m >= rms / SINGLE_VIEW - 0.005 / SINGLE_VIEW, (spec, view, band["ndotv"], m, rms)
     lo_p = shrm.reflect(shrm.create_shrm(e, lobe, order=f_hi, p_order=4, size=size), v)
     hi_p = shrm.reflect(shrm.create_shrm(e, lobe, order=f_hi, p_order=p_hi, size=size), v)
     assert masked_rms(hi_p, ref, v) < tol_89
