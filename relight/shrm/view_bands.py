@@ -23,8 +23,8 @@ reflection map, eq. 12, whose view cosine falls in the band). The figures per ba
   energy at ``L* + 1``) had over-predicted city by up to 7 times (``docs/accuracy/grazing.md``); on a smooth map the
   continued level over-estimates a decaying tail, which then meets a lobe that holds little beyond L*;
 * ``rms`` — the prediction: ``VIEW_MARGIN`` (1.5) times ``rms_average``. One map seen from a few views samples
-  only some orientations of its lighting: on five sample maps at 64 rows the measured band error stayed within
-  0.76–1.15 times ``rms_average`` (2400 texels of 100 views per band, jackknife standard errors 3–25 %;
+  only some orientations of its lighting: on four sample maps at 64 rows the measured band error stayed within
+  0.76–1.23 times ``rms_average`` (2400 texels of 100 views per band, jackknife standard errors 3–25 %;
   ``docs/accuracy/grazing.md``), so the margin keeps the prediction above what is measured while staying within
   3 times it (issue 18's test, ``tests/relight/test_view_bands.py``);
 * ``rms_appendix_b`` — App. B's bound: ``sum_{l > F}`` replaced by its step at F + 1,

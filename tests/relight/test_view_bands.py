@@ -150,7 +150,7 @@ def test_prediction_brackets_the_brute_force(name: str, spec: str, f: int, p: in
     own approximations (the lighting's level continued flat beyond the map's order over-estimates a decaying tail;
     the view quadrature), and a prediction off by more fails (App. B's step in place of the flat continuation gave
     up to 6.9 m on city, docs/accuracy/grazing.md). The other side, m <= rms, is the margin's own claim (1.5 above
-    every measured / average ratio seen, 0.76-1.25 on five maps) and is asserted as the issue states it."""
+    every measured / average ratio seen, 0.76-1.23 on four maps) and is asserted as the issue states it."""
     px = _map(name, 64)
     lobe = parse_brdf(spec)
     sm = create_shrm(px, lobe, order=f, p_order=p, size=64)
