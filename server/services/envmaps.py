@@ -14,14 +14,10 @@ The id is the SHA-256 of the uploaded bytes: uploading the same file twice retur
 
 from __future__ import annotations
 
-import asyncio
 import logging
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
-
-from distributed.scheduler import KilledWorker
-from sqlalchemy import select
 
 from relight.contract.models import EnvmapPublic
 from relight.envmap.formats import ACCEPTED, check_max_pixels, sniff
@@ -39,8 +35,9 @@ from relight.server.problems import (
 from relight.server.services import uploads
 from relight.server.services.base import in_thread, utc
 from relight.server.services.metrics import Metrics
+from relight.server.services.resources import ResourceService
 from relight.worker import tasks
-from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore, BlobWriter, check_digest
+from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore, BlobWriter
 
 log = logging.getLogger("relight.server")
 
@@ -60,16 +57,14 @@ def check_header_size(width: int, height: int, max_pixels: int) -> None:
                             "2 x height, or a cube map (6:1 or 1:6 strip, 4:3 or 3:4 cross)")
 
 
-class EnvmapService:
+class EnvmapService(ResourceService[Envmap, EnvmapPublic]):
+    table = Envmap
+    noun = "environment map"
+
     def __init__(self, settings: Settings, db: Database, store: BlobStore, cluster: Cluster, metrics: Metrics) -> None:
-        self.settings = settings
-        self.db = db
-        self.store = store
-        self.cluster = cluster
-        self.metrics = metrics
+        super().__init__(settings, db, store, cluster, metrics)
         #: worker address running the analysis of each digest (from its "started" event): restarted on timeout
         self.analysing_on: dict[str, str] = {}
-        self._cache: dict[str, EnvmapPublic] = {}
 
     # ------------------------------------------------------------------------------------------------ reading
     def _public(self, row: Envmap) -> EnvmapPublic:
@@ -78,32 +73,8 @@ class EnvmapService:
             links={"self": f"/envmaps/{row.id}", "preview": f"/envmaps/{row.id}/preview.png"},
         )
 
-    def _get_row(self, envmap_id: str) -> Envmap | None:
-        with self.db.session() as s:
-            return s.get(Envmap, envmap_id)
-
-    async def get(self, envmap_id: str) -> EnvmapPublic:
-        cached = self._cache.get(envmap_id)
-        if cached is not None:
-            return cached
-        row = await in_thread(self._get_row, envmap_id)
-        if row is None:
-            raise NotFound(f"no environment map with id {envmap_id!r}")
-        pub = self._public(row)
-        self._cache[envmap_id] = pub
-        return pub
-
-    async def list(self, limit: int) -> list[EnvmapPublic]:
-        def q() -> list[Envmap]:
-            with self.db.session() as s:
-                return list(s.scalars(select(Envmap).order_by(Envmap.created_at.desc()).limit(limit)))
-
-        return [self._public(r) for r in await in_thread(q)]
-
     async def preview(self, envmap_id: str) -> tuple[Path, str]:
-        row = await in_thread(self._get_row, envmap_id)
-        if row is None:
-            raise NotFound(f"no environment map with id {envmap_id!r}")
+        row = await self.row(envmap_id)
         digest = row.info.get("preview_sha256")
         if digest is None:
             raise NotFound(f"environment map {envmap_id} has no preview")
@@ -171,19 +142,7 @@ class EnvmapService:
             raise
         if existing is not None:
             return self._public(existing), False
-        row = Envmap(id=digest, name=(name or None) and name[:255], bytes=writer.size, info=info)
-
-        def insert() -> Envmap:
-            with self.db.session() as s:
-                found = s.get(Envmap, digest)
-                if found is not None:
-                    return found
-                s.add(row)
-            return row
-
-        stored = await in_thread(insert)
-        self.metrics.inc("uploads_total")
-        return self._public(stored), stored is row
+        return await self._insert(Envmap(id=digest, name=(name or None) and name[:255], bytes=writer.size, info=info))
 
     async def _analyze(self, digest: str) -> dict[str, Any]:
         s = self.settings
@@ -191,26 +150,13 @@ class EnvmapService:
             tasks.analyze_envmap, str(self.store.root), digest, key=f"relight-analyze-{digest}",
             max_pixels=s.max_pixels, spectrum_lmax=s.spectrum_lmax,
         )
-        try:
-            info: dict[str, Any] = await asyncio.wait_for(fut, s.decode_timeout_s)
-        except TimeoutError:
-            await self.cluster.cancel(fut)
+
+        async def restart() -> None:  # a decoder stuck in C code: restart its worker
             addr = self.analysing_on.pop(f"envmap-{digest}", None)
             if addr is not None:
                 await self.cluster.restart_worker(addr)
-            raise Unprocessable(f"decoding the upload took longer than {s.decode_timeout_s:g} s; it was stopped") \
-                from None
-        except InputError as exc:
-            raise Unprocessable(str(exc)) from None
-        except KilledWorker:
-            raise Unprocessable("decoding the upload crashed the worker process (corrupt data or over the memory "
-                                "limit)") from None
+
+        try:
+            return await self._decode(fut, "the upload", on_timeout=restart)
         finally:
             self.analysing_on.pop(f"envmap-{digest}", None)
-        return info
-
-    def known_digest(self, envmap_id: str) -> str:
-        try:
-            return check_digest(envmap_id)
-        except ValueError:
-            raise NotFound(f"no environment map with id {envmap_id!r}") from None

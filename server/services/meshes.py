@@ -18,26 +18,20 @@ way at start-up from the files ``relight.mesh.sample_file`` gives (the generated
 
 from __future__ import annotations
 
-import asyncio
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
-from distributed.scheduler import KilledWorker
-from sqlalchemy import select
-
 from relight.contract.models import MeshPublic
 from relight.errors import InputError
 from relight.mesh.load import SNIFF_BYTES, sniff
-from relight.server.cluster import Cluster
-from relight.server.config import Settings
-from relight.server.db import Database, Mesh
-from relight.server.problems import NotFound, Unprocessable, UnsupportedMediaType
+from relight.server.db import Mesh
+from relight.server.problems import Unprocessable, UnsupportedMediaType
 from relight.server.services import uploads
 from relight.server.services.base import in_thread, utc
-from relight.server.services.metrics import Metrics
+from relight.server.services.resources import ResourceService
 from relight.worker import meshes as mesh_tasks
-from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore, check_digest
+from relight.worker.blobs import BlobCorrupt, BlobMissing
 
 ACCEPTED = "Wavefront OBJ, glTF 2.0 (.gltf with embedded buffers) or GLB"
 
@@ -48,15 +42,9 @@ def _check_mesh_head(head: bytes) -> None:
                                    f"accepted formats are {ACCEPTED}")
 
 
-class MeshService:
-    def __init__(self, settings: Settings, db: Database, store: BlobStore, cluster: Cluster,
-                 metrics: Metrics) -> None:
-        self.settings = settings
-        self.db = db
-        self.store = store
-        self.cluster = cluster
-        self.metrics = metrics
-        self._cache: dict[str, MeshPublic] = {}
+class MeshService(ResourceService[Mesh, MeshPublic]):
+    table = Mesh
+    noun = "mesh"
 
     @property
     def max_bytes(self) -> int:
@@ -67,28 +55,6 @@ class MeshService:
         links = {"self": f"/meshes/{row.id}", "geometry.bin": f"/meshes/{row.id}/geometry.bin"}
         return MeshPublic(id=row.id, name=row.name, bytes=row.bytes, created_at=utc(row.created_at),
                           links=links, **{k: v for k, v in row.info.items() if k != "decode_seconds"})
-
-    def _get_row(self, mesh_id: str) -> Mesh | None:
-        with self.db.session() as s:
-            return s.get(Mesh, mesh_id)
-
-    async def get(self, mesh_id: str) -> MeshPublic:
-        cached = self._cache.get(mesh_id)
-        if cached is not None:
-            return cached
-        row = await in_thread(self._get_row, mesh_id)
-        if row is None:
-            raise NotFound(f"no mesh with id {mesh_id!r}")
-        pub = self._public(row)
-        self._cache[mesh_id] = pub
-        return pub
-
-    async def list(self, limit: int) -> list[MeshPublic]:
-        def q() -> list[Mesh]:
-            with self.db.session() as s:
-                return list(s.scalars(select(Mesh).order_by(Mesh.created_at.desc()).limit(limit)))
-
-        return [self._public(r) for r in await in_thread(q)]
 
     async def geometry(self, mesh_id: str) -> tuple[Path, str]:
         """The verified ``geometry.bin`` of a mesh (derived data: decoded again if it is gone or corrupt)."""
@@ -124,19 +90,7 @@ class MeshService:
                 await in_thread(self.store.delete, digest)
                 self.metrics.inc("uploads_rejected_total")
             raise
-        row = Mesh(id=digest, name=(name or None) and name[:255], bytes=size, info=info)
-
-        def insert() -> Mesh:
-            with self.db.session() as s:
-                found = s.get(Mesh, digest)
-                if found is not None:
-                    return found
-                s.add(row)
-            return row
-
-        stored = await in_thread(insert)
-        self.metrics.inc("uploads_total")
-        return self._public(stored), stored is row
+        return await self._insert(Mesh(id=digest, name=(name or None) and name[:255], bytes=size, info=info))
 
     async def ingest_sample(self, sample: str) -> tuple[MeshPublic, bool]:
         """Ingest a sample mesh (``relight.mesh.SAMPLES``) as an upload of its file."""
@@ -156,21 +110,4 @@ class MeshService:
         fut = self.cluster.submit(mesh_tasks.analyze_mesh, str(self.store.root), digest, name=name,
                                   max_bytes=self.max_bytes, max_vertices=s.max_mesh_vertices,
                                   max_faces=s.max_mesh_faces, key=f"relight-mesh-{digest}")
-        try:
-            info: dict[str, Any] = await asyncio.wait_for(fut, s.decode_timeout_s)
-        except TimeoutError:
-            await self.cluster.cancel(fut)
-            raise Unprocessable(f"decoding the mesh took longer than {s.decode_timeout_s:g} s; it was stopped") \
-                from None
-        except InputError as exc:
-            raise Unprocessable(str(exc)) from None
-        except KilledWorker:
-            raise Unprocessable("decoding the mesh crashed the worker process (corrupt data or over the memory "
-                                "limit)") from None
-        return info
-
-    def known_digest(self, mesh_id: str) -> str:
-        try:
-            return check_digest(mesh_id)
-        except ValueError:
-            raise NotFound(f"no mesh with id {mesh_id!r}") from None
+        return await self._decode(fut, "the mesh")
