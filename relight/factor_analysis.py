@@ -35,7 +35,8 @@ def analyse(brdf: Any, *, domain: str = "hemisphere", resolution: int = 40, phi:
             grid: str = "gauss", include_cosine: bool = True, method: str = "auto", factors: int = 8,
             check_convergence: bool = True) -> tuple[dict[str, Any], Factorization]:
     """The analysis document (``terms``, ``terms_whole_groups``, ``singular_values``, ``frequencies``,
-    ``predicted_terms``, ``prediction``, ``convergence``, grid, quantity and seconds) and the factorization (with
+    ``predicted_terms``, ``prediction``, ``convergence``, grid, quantity and seconds; ``radial_transfer``: |F_l|
+    for lobes about R, else None) and the factorization (with
     ``factors`` leading factor images)."""
     from relight.brdf.frame import FrameBRDF
     from relight.brdf.spec import brdf_to_spec
@@ -70,7 +71,21 @@ def analyse(brdf: Any, *, domain: str = "hemisphere", resolution: int = 40, phi:
     doc["convergence"] = conv
     if res.factors:
         doc["factors"] = {"sigma": [f.sigma for f in res.factors], "m": [f.m for f in res.factors]}
+    doc["radial_transfer"] = _radial_transfer(brdf) if include_cosine else None
     return doc, res
+
+
+def _radial_transfer(brdf: Any) -> list[float] | None:
+    """|F_l| of a lobe about R (the sphere's singular values, eq. 9; relight's transfer factors) up to the order
+    holding all but 1e-8 of its energy, or None for other BRDFs."""
+    from relight.brdf.base import RadialLobe
+    from relight.brdf.coefficients import spectrum_for_tolerance
+    from relight.factor_predict import SPECTRUM_TAIL, mean_lobe
+
+    if not isinstance(brdf, RadialLobe) or brdf.center != "R":
+        return None
+    spec, _ = spectrum_for_tolerance(mean_lobe(brdf), SPECTRUM_TAIL)
+    return [float(abs(x)) for x in spec.transfer[:, 0]]
 
 
 def _disk_nodes(res: Factorization, lower: bool) -> NDArray[np.int64]:

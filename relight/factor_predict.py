@@ -59,7 +59,7 @@ def half_angle_slope(tau: float) -> float:
     return float(np.interp(tau, keys, [HALF_ANGLE_SLOPE[k] for k in keys]))
 
 
-def _mean_lobe(lobe: RadialLobe) -> RadialLobe:
+def mean_lobe(lobe: RadialLobe) -> RadialLobe:
     if lobe.channels == 1:
         return lobe
     return Lobe1D(func=lambda t: np.asarray(lobe.u(t), dtype=np.float64).mean(axis=-1), center=lobe.center)
@@ -73,7 +73,7 @@ def radial_terms(lobe: RadialLobe, domain: str, thresholds: tuple[float, ...] = 
         return {"method": "rank-one", "terms": {t: 1 for t in thresholds}, "l_star": {t: 0 for t in thresholds}}
     if lobe.center != "R":
         raise InputError(f"{lobe.kind}: radial predictions need a lobe about R or N, got centre {lobe.center!r}")
-    mean = _mean_lobe(lobe)
+    mean = mean_lobe(lobe)
     spec, _ = spectrum_for_tolerance(mean, SPECTRUM_TAIL)
     transfer = np.abs(spec.transfer[:, 0])
     l = np.arange(transfer.size)

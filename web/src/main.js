@@ -2,6 +2,7 @@
 // window.relight exposes the state for tests and the benchmark (tests/web, bench/viewer.py).
 import { Api, ApiError, TERMINAL } from './api.js';
 import { compare } from './compare.js';
+import { initInOut } from './inout_panel.js';
 import { modelsFromOpenapi, specFor } from './materials.js';
 import { loadFile, loadSample } from './objects.js';
 import { exampleScene, parseScene, sceneItems, showScene } from './scene.js';
@@ -580,6 +581,7 @@ async function main() {
   }
   await initShadows(state, $, showError);
   initGaussianPanel(state, $, showError);
+  await initInOut(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
     await loadResult(fromUrl).catch((err) => showError('plan-error', err));
