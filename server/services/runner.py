@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import errno
 import logging
+import re
 from collections.abc import Awaitable, Callable
 from typing import Any, Final
 
@@ -25,6 +26,11 @@ from relight.worker.progress import JobCancelled
 
 log = logging.getLogger("relight.server")
 
+#: How a full disk reads in errors that are not an ``OSError``: OpenEXR's writer raises ``RuntimeError("Failed to
+#: write pixel data to image file \"<path>\". No space left on device.")`` (found by the real full-disk test).
+DISK_FULL_TEXTS: Final = ("No space left on device", "Disk quota exceeded")
+#: Absolute paths in an error's text (a server's store, its temporary files): never shown to a client (issue 12).
+PATH_RE: Final = re.compile(r"(?<![\w.:/])/(?:[\w.@+-]+/)+[\w.@+-]*")
 #: Resubmissions after the scheduler connection was lost, before the job is marked failed (retryable).
 MAX_RESUBMITS: Final = 5
 
@@ -66,6 +72,7 @@ def failure_of(exc: BaseException) -> tuple[str, bool]:
                 "limit"), True
     if isinstance(exc, JobCancelled | SchedulerLost):
         return str(exc), True
-    if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
+    if (isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)) \
+            or any(text in str(exc) for text in DISK_FULL_TEXTS):
         return "the blob store is full (no space left on its device); resubmit once space is freed", True
-    return f"{type(exc).__name__}: {exc}", True
+    return PATH_RE.sub("<path>", f"{type(exc).__name__}: {exc}"), True

@@ -110,3 +110,16 @@ def test_a_full_disk_fails_retryably_without_the_path() -> None:
 
     reason, retryable = failure_of(OSError(errno.ENOSPC, "No space left on device", "/srv/relight/blobs/tmp/x.part"))
     assert retryable and "full" in reason and "/srv" not in reason
+
+
+def test_full_disk_in_other_words_and_paths_are_never_in_a_reason() -> None:
+    """OpenEXR reports a full disk as a RuntimeError with the file's path (found by
+    tests/service/test_reliability_disk.py); any other error's text loses its absolute paths."""
+    from relight.server.services.runner import failure_of
+
+    exr = RuntimeError('Failed to write pixel data to image file "/srv/relight/blobs/tmp/ab12.exr". No space left '
+                       "on device.")
+    reason, retryable = failure_of(exr)
+    assert retryable and "full" in reason and "/srv" not in reason
+    reason, _ = failure_of(RuntimeError("cannot open /srv/relight/blobs/sha256/ab/cd/abcd for reading (see a/b)"))
+    assert reason == "RuntimeError: cannot open <path> for reading (see a/b)", reason
