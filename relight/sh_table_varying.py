@@ -39,14 +39,20 @@ class VaryingTable:
         a = np.asarray(q, dtype=np.float64)
         return np.log(a) if self.spacing == "log" else a
 
-    def lookup(self, views: ArrayLike, q: ArrayLike, *, exact_azimuth: bool = True) -> FloatArray:
-        """Coefficients (N, n, C) at local views (N, 3) and parameter values (N,) (or one value)."""
-        v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
-        qq = np.broadcast_to(np.asarray(q, dtype=np.float64), v.shape[:1])
+    def positions(self, q: ArrayLike) -> FloatArray:
+        """Fractional positions among the tables of parameter values q (...): ``k + t`` between samples k and k + 1
+        (linear in q or log q), clamped to ``[0, Q - 1]`` (the GPU's per-vertex ``a_table``)."""
+        qq = np.asarray(q, dtype=np.float64)
         if np.any(~np.isfinite(qq)) or (self.spacing == "log" and np.any(qq <= 0.0)):
             raise InputError(f"{self.parameter} values must be finite (and > 0 for log spacing)")
         grid = self._axis(self.values)
-        pos = np.interp(self._axis(qq), grid, np.arange(grid.size))
+        return np.asarray(np.interp(self._axis(qq), grid, np.arange(grid.size)), dtype=np.float64)
+
+    def lookup(self, views: ArrayLike, q: ArrayLike, *, exact_azimuth: bool = True) -> FloatArray:
+        """Coefficients (N, n, C) at local views (N, 3) and parameter values (N,) (or one value)."""
+        v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+        pos = self.positions(np.broadcast_to(np.asarray(q, dtype=np.float64), v.shape[:1]))
+        grid = self.values
         k0 = np.minimum(np.floor(pos).astype(np.intp), grid.size - 2)
         t = (pos - k0)[:, None, None]
         per = np.stack([tab.lookup(v, exact_azimuth=exact_azimuth) for tab in self.tables])  # (Q, N, n, C)

@@ -2,7 +2,8 @@
 modes of ``web/src/sh_table.js`` (the same GLSL as relight/gl/sh_table.py) against the CPU evaluation
 ``relight.sh_render.shade`` on the same float16 table; and the ``transfer`` mode (PRT with shadows and one
 interreflection bounce, ``relight.sh_prt_bounce``, on the teapot) against ``relight.sh_prt.shade_prt`` on the same
-float16 table and matrices.
+float16 table and matrices; and spatially varying tables (three AS exponents, a per-vertex position among them)
+against ``relight.sh_table_varying.VaryingTable.lookup`` on the same float16 tables.
 
 Tolerance per point (as tests/relight/test_gl_sh_table.py): a bilinear lookup may differ by a fixed-point
 sub-texel weight (2^-9 of the change over its 2 x 2 footprint) times |L_local,i|, plus the float32 rotation error
@@ -25,6 +26,7 @@ from relight.sh_prt_bounce import BounceSettings, vertex_transfer
 from relight.sh_render import shade
 from relight.sh_rotation import local_rotations, rotate_coefficients
 from relight.sh_table import SHTable, build_table
+from relight.sh_table_varying import VaryingTable, build_varying_table
 from relight.tangent_frames import projected_frames
 from relight.view_maps import view_to_texel
 
@@ -38,7 +40,10 @@ PROBE_JS = """async (a) => {
   const bytes = Uint8Array.from(atob(a.half), (c) => c.charCodeAt(0));
   const gl = document.createElement('canvas').getContext('webgl2');
   const t = new SHTableGL(gl, read, { order: a.order, layout: a.layout, resolution: a.resolution,
-                                       half: new Uint16Array(bytes.buffer) });
+                                       half: new Uint16Array(bytes.buffer), tables: a.tables || 1 });
+  if (a.positions) {
+    t.setTablePositions(new Float32Array(a.positions));
+  }
   const out = {};
   if (a.transfer) {
     const tb = Uint8Array.from(atob(a.transfer), (c) => c.charCodeAt(0));
@@ -140,3 +145,55 @@ def test_transfer_mode_with_interreflections_matches_cpu(page: Any) -> None:
     # the bounce is in what the browser drew: without it the CPU result differs by more than the tolerance
     shadow_only = shade_prt(same, light, frames, view, folded_transfer(frames, vt.direct, order))
     assert np.abs(shadow_only - cpu).max() > 10 * tol.max()
+
+
+def test_spatially_varying_tables_match_cpu(page: Any) -> None:
+    """Three modes with Q = 3 tables of AS at nu = 8, 24, 72 (log spacing) and per-vertex nu from 5 to 100 (clamped
+    at both ends): the GPU blends the two neighbouring tables' bilinear lookups. Tolerance as the three-mode test,
+    the footprint taken over both tables, plus the float32 position (2^-22 of the neighbours' difference)."""
+    order, layout = 4, "parabolic"
+    var = build_varying_table({"kind": "ashikhmin-shirley", "nu": 24, "nv": 8, "rs": 0.05, "rd": 0.0}, "nu",
+                              [8.0, 24.0, 72.0], order=order, resolution=16)
+    halves = [np.broadcast_to(to_half_safe(t.coefficients)[0], t.coefficients.shape[:3] + (3,))
+              for t in var.tables]
+    rng = np.random.default_rng(9)
+    normals = rng.normal(size=(300, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    frames = projected_frames(normals, (0.3, 0.2, 0.9))
+    frames[1::2, 1] *= -1.0
+    tangents = np.concatenate([frames[:, 0], np.where(np.linalg.det(frames) < 0, -1.0, 1.0)[:, None]], axis=1)
+    nu = np.exp(rng.uniform(np.log(5.0), np.log(100.0), 300))
+    pos = var.positions(nu).astype(np.float32)
+    view = np.array([0.25, 0.55, 0.8]) / np.linalg.norm([0.25, 0.55, 0.8])
+    light = rng.normal(size=(25, 3)) * 0.3
+    light[0] += 3.0
+    stacked = np.concatenate([np.transpose(h, (2, 0, 1, 3)) for h in halves])  # (Q n, R, R, 3)
+    got = page.evaluate(PROBE_JS, {
+        "order": order, "layout": layout, "resolution": 16, "modes": list(MODES), "tables": 3,
+        "half": base64.b64encode(np.ascontiguousarray(stacked, "<f2").tobytes()).decode(),
+        "positions": pos.tolist(), "normals": normals.ravel().tolist(), "tangents": tangents.ravel().tolist(),
+        "view": view.tolist(), "light": light.ravel().tolist()})
+
+    same = VaryingTable("nu", var.values, "log", [SHTable(np.asarray(h, np.float64), t.views, t.valid, order, layout,
+                                                          {}) for h, t in zip(halves, var.tables, strict=True)])
+    vl = np.einsum("nij,j->ni", frames, view)
+    coef = same.lookup(vl, nu, exact_azimuth=False)
+    local = rotate_coefficients(local_rotations(frames, order), light[None])
+    cpu = np.where((vl[:, 2] > 0)[:, None], np.einsum("nic,nic->nc", local, coef), 0.0)
+    x, y = view_to_texel(layout, 16, vl)
+    x0, y0 = (np.clip(np.floor(c).astype(int), 0, 14) for c in (x, y))
+    quad = np.stack([t.coefficients[y0 + i, x0 + j] for t in same.tables for i in (0, 1) for j in (0, 1)])
+    per = np.stack([t.lookup(vl, exact_azimuth=False) for t in same.tables])
+    band = sum(np.linalg.norm(local[:, full_block(l)], axis=1) * np.linalg.norm(coef[:, full_block(l)], axis=1)
+               for l in range(order + 1))
+    tol = SLACK * (FILTER_STEP * np.einsum("nic,nic->nc", np.abs(local), quad.max(0) - quad.min(0))
+                   + ROT_TOL * band + 1e-6 * np.einsum("nic,nic->nc", np.abs(local), np.abs(coef))
+                   + 2.0**-22 * np.einsum("nic,nic->nc", np.abs(local), per.max(0) - per.min(0)))
+    tol = np.where((vl[:, 2] > 0)[:, None], tol, 0.0) + 1e-6
+    assert np.abs(cpu).max() > 0.1 and (vl[:, 2] > 0).sum() > 100
+    assert (pos == 0).any() and (pos == 2).any() and ((pos > 0) & (pos < 2)).sum() > 100  # clamped and blended
+    single = np.where((vl[:, 2] > 0)[:, None], np.einsum("nic,nic->nc", local, per[1]), 0.0)
+    assert np.abs(single - cpu).max() > 20 * tol.max()  # the parameter really varies the result
+    for mode in MODES:
+        gpu = np.asarray(got[mode]).reshape(-1, 3)
+        assert np.all(np.abs(gpu - cpu) <= tol), (mode, float(np.abs(gpu - cpu).max()))

@@ -19,6 +19,9 @@
 // Table: a texture array of SHR_COUNT RGB layers, R x R texels over the view map (TABLE_PARABOLIC or
 // TABLE_HEMI_OCTAHEDRAL; relight/view_maps.py), bilinear, clamped to the edge; views below z = VIEW_RIM_Z are moved to
 // the rim direction of their azimuth first. Frames: t = a_tangent.xyz, b = a_tangent.w (n x t), n = a_normal.
+// TABLE_VARYING (with TABLE_COUNT = Q >= 2): spatially varying tables (§3, Fig. 4; relight/sh_table_varying.py): Q
+// tables stacked in the array (layer q * SHR_COUNT + i), a_table the vertex's fractional position among them
+// (VaryingTable.positions: linear in q or log q), clamped to [0, Q - 1]; the lookup blends the two neighbours.
 
 #include "generated/constants.glsl"
 #include "sh_rotation.glsl"
@@ -26,6 +29,9 @@
 in vec3 a_position;
 in vec3 a_normal;
 in vec4 a_tangent;
+#ifdef TABLE_VARYING
+in float a_table;
+#endif
 
 uniform mat4 u_view_projection;
 uniform vec3 u_view;               // unit world direction toward the distant viewer
@@ -62,9 +68,20 @@ vec2 table_uv(vec3 v) {
 
 void table_lookup(vec3 v_local) {
     vec2 uv = table_uv(table_clamp(normalize(v_local)));
+#ifdef TABLE_VARYING
+    float pos = clamp(a_table, 0.0, float(TABLE_COUNT - 1));
+    float k0 = min(floor(pos), float(TABLE_COUNT - 2));
+    float w = pos - k0;
+    int base = int(k0) * SHR_COUNT;
+    for (int i = 0; i < SHR_COUNT; ++i) {
+        tbl_c[i] = mix(textureLod(u_table, vec3(uv, float(base + i)), 0.0).rgb,
+                       textureLod(u_table, vec3(uv, float(base + SHR_COUNT + i)), 0.0).rgb, w);
+    }
+#else
     for (int i = 0; i < SHR_COUNT; ++i) {
         tbl_c[i] = textureLod(u_table, vec3(uv, float(i)), 0.0).rgb;
     }
+#endif
 }
 
 vec3 vertex_data(int vertex, int i) {

@@ -22,7 +22,7 @@ export const DATA_WIDTH = 2048;
 export const SHADER_FILES = ['sh_table.vert.glsl', 'sh_table.frag.glsl'];
 
 /** The defines of sh_table.vert.glsl, as relight.gl.sh_table.shader_defines. */
-export function shaderDefines(order, layout, mode, target = null) {
+export function shaderDefines(order, layout, mode, target = null, tables = 1) {
   if (!(mode in MODE_DEFINE)) {
     throw new Error(`unknown SH-table mode ${mode}`);
   }
@@ -35,6 +35,10 @@ export function shaderDefines(order, layout, mode, target = null) {
   defines.OUTPUT_LINEAR = null;
   if (target) {
     defines[target] = null;
+  }
+  if (tables > 1) {  // spatially varying tables (sh_table.vert.glsl, TABLE_VARYING)
+    defines.TABLE_VARYING = null;
+    defines.TABLE_COUNT = tables;
   }
   return defines;
 }
@@ -53,10 +57,11 @@ export class SHTableGL {
   /**
    * @param {WebGL2RenderingContext} gl
    * @param {function(string): string} read shader source reader (shaders.loadSources)
-   * @param {{order: number, layout: string, resolution: number, half: Uint16Array}} table float16 bits in
-   *   (coefficient, row, column, RGB) order
+   * @param {{order: number, layout: string, resolution: number, half: Uint16Array, tables?: number}} table
+   *   float16 bits in (coefficient, row, column, RGB) order; with `tables` = Q > 1, Q such tables one after the
+   *   other (spatially varying: each vertex's position among them comes from setTablePositions)
    */
-  constructor(gl, read, { order, layout, resolution, half }) {
+  constructor(gl, read, { order, layout, resolution, half, tables = 1 }) {
     if (!gl.getExtension('EXT_color_buffer_float')) {
       throw new Error('EXT_color_buffer_float is required for float targets');
     }
@@ -65,13 +70,17 @@ export class SHTableGL {
     this.order = order;
     this.layout = layout;
     this.n = (order + 1) * (order + 1);
-    if (half.length !== this.n * resolution * resolution * 3) {
-      throw new Error(`table data holds ${half.length} values, expected ${this.n * resolution * resolution * 3}`);
+    this.tables = tables;
+    this.positions = null;
+    if (half.length !== tables * this.n * resolution * resolution * 3) {
+      throw new Error(`table data holds ${half.length} values, expected `
+        + `${tables * this.n * resolution * resolution * 3}`);
     }
     this.table = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.table);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGB16F, resolution, resolution, this.n, 0, gl.RGB, gl.HALF_FLOAT, half);
+    gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGB16F, resolution, resolution, this.n * tables, 0, gl.RGB,
+      gl.HALF_FLOAT, half);
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
@@ -84,7 +93,7 @@ export class SHTableGL {
     const key = `${mode}/${target}`;
     if (!this.programs.has(key)) {
       const gl = this.gl;
-      const defines = shaderDefines(this.order, this.layout, mode, target);
+      const defines = shaderDefines(this.order, this.layout, mode, target, this.tables);
       const prog = gl.createProgram();
       gl.attachShader(prog, compile(gl, gl.VERTEX_SHADER, build('sh_table.vert.glsl', { defines, read: this.read })));
       gl.attachShader(prog, compile(gl, gl.FRAGMENT_SHADER,
@@ -115,7 +124,27 @@ export class SHTableGL {
       }
       offset += 4 * size;
     }
-    return { vao, buf };
+    let posBuf = null;
+    const tableLoc = gl.getAttribLocation(prog, 'a_table');
+    if (tableLoc >= 0) {
+      if (!this.positions) {
+        throw new Error('spatially varying tables need setTablePositions first');
+      }
+      posBuf = gl.createBuffer();
+      gl.bindBuffer(gl.ARRAY_BUFFER, posBuf);
+      gl.bufferData(gl.ARRAY_BUFFER, this.positions, gl.STATIC_DRAW);
+      gl.enableVertexAttribArray(tableLoc);
+      gl.vertexAttribPointer(tableLoc, 1, gl.FLOAT, false, 4, 0);
+    }
+    return { vao, buf, posBuf };
+  }
+
+  /**
+   * Per-vertex fractional positions among the tables (relight.sh_table_varying.VaryingTable.positions).
+   * @param {Float32Array} positions
+   */
+  setTablePositions(positions) {
+    this.positions = positions;
   }
 
   setUniforms(prog, view, light) {
@@ -154,7 +183,7 @@ export class SHTableGL {
     gl.disable(gl.BLEND);
     gl.clearColor(0, 0, 0, 0);
     gl.clear(gl.COLOR_BUFFER_BIT);
-    const { vao, buf } = this.vertexArray(prog, vertices);
+    const { vao, buf, posBuf } = this.vertexArray(prog, vertices);
     gl.drawArraysInstanced(gl.POINTS, 0, count, instances);
     const out = new Float32Array(DATA_WIDTH * rows * 4);
     gl.readPixels(0, 0, DATA_WIDTH, rows, gl.RGBA, gl.FLOAT, out);
@@ -162,6 +191,9 @@ export class SHTableGL {
     gl.deleteFramebuffer(fbo);
     gl.deleteVertexArray(vao);
     gl.deleteBuffer(buf);
+    if (posBuf) {
+      gl.deleteBuffer(posBuf);
+    }
     if (!keep) {
       gl.deleteTexture(tex);
       return [null, out];
