@@ -8,6 +8,7 @@ import { loadFile, loadSample } from './objects.js';
 import { exampleScene, parseScene, sceneItems, showScene } from './scene.js';
 import { initGaussianPanel } from './gaussian_panel.js';
 import { initShadows } from './shadows.js';
+import { initShTables } from './sh_table_panel.js';
 import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
 
@@ -582,6 +583,7 @@ async function main() {
   await initShadows(state, $, showError);
   initGaussianPanel(state, $, showError);
   await initInOut(state, $, showError);
+  initShTables(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
     await loadResult(fromUrl).catch((err) => showError('plan-error', err));
