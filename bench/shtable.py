@@ -4,6 +4,7 @@ Measures, in one run:
 
 * an analytic anisotropic 128 x 128 x 25 table (Ashikhmin–Shirley (48, 16), R_s = 0.05; issue target < 10 s;
   the paper: "a few minutes" with 1000 samples per integral);
+* predicted seconds of both tables (``relight.sh_table_predict.predicted_table_seconds``) beside the measured;
 * a MERL-format table: a MERL file synthesised from Torrance–Sparrow GGX 0.2 (``tabulate_merl``, no MERL file
   ships), read back by ``MERLBRDF`` (trilinear), 128 x 128 x 25 x RGB through the isotropic 1-D path (target
   < 60 s; the paper: "up to 90 minutes" for measured data);
@@ -34,6 +35,7 @@ from relight.brdf.models import TorranceSparrow
 from relight.brdf.spec import parse_frame_brdf
 from relight.sh_rotation import band_rotations, local_rotations, rotate_coefficients
 from relight.sh_table import build_table, project_views
+from relight.sh_table_predict import predicted_table_seconds
 
 
 def timed(fn: Any) -> tuple[Any, float]:
@@ -56,6 +58,9 @@ def main() -> None:
     table, t_as = timed(lambda: build_table(as48, resolution=res))
     out["analytic_seconds"] = t_as
     rows.append((f"AS (48,16) table {res}x{res}x25", f"{t_as:.2f} s (target < 10 s)"))
+    pred = predicted_table_seconds(as48, 4, res)
+    out["analytic_predicted_seconds"] = pred
+    rows.append(("  predicted (relight.sh_table_predict)", f"{pred:.2f} s"))
 
     fine, t_fine = timed(lambda: build_table(as48, resolution=res, refine=2))
     diff = np.abs(table.coefficients - fine.coefficients).max(axis=(2, 3)) / np.abs(fine.coefficients).max()
@@ -71,6 +76,9 @@ def main() -> None:
         mtable, t_merl = timed(lambda: build_table(merl, resolution=res))
     out["merl_seconds"] = t_merl
     rows.append((f"MERL-format table {res}x{res}x25xRGB", f"{t_merl:.2f} s (target < 60 s)"))
+    pred_merl = predicted_table_seconds(merl, 4, res)
+    out["merl_predicted_seconds"] = pred_merl
+    rows.append(("  predicted (relight.sh_table_predict)", f"{pred_merl:.2f} s"))
     out["merl_albedo_max"] = float(mtable.albedo().max())
 
     rng = np.random.default_rng(2)
