@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from relight.errors import InputError
+from relight import validate
 
 #: Grid size N (N nodes in cos theta, N azimuths: the paper's N^4 matrix, §3.2) when --resolution is not given.
 DEFAULT_RESOLUTION = 40
@@ -27,8 +27,7 @@ def cmd_factorize(args: argparse.Namespace) -> int:
     from relight.brdf.spec import parse_frame_brdf
     from relight.factor_analysis import analyse
 
-    if args.factors < 0:
-        raise InputError(f"--factors must be >= 0, got {args.factors}")
+    validate.at_least("--factors", args.factors, 0)
     n = args.resolution
     doc, res = analyse(parse_frame_brdf(args.brdf), domain=args.domain, resolution=n, phi=args.phi, grid=args.grid,
                        include_cosine=not args.no_cosine, method=args.method, factors=args.factors,

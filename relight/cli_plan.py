@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from relight import validate
 from relight.errors import InputError
 
 #: Input rows the tradeoff works on by default (area-averaged, ``relight.envmap.resample_latlong``): its reference
@@ -51,8 +52,7 @@ def _load_pixels(path: str, rows: int | None) -> tuple[Any, int]:
     px = np.asarray(env.pixels, dtype=np.float64)
     h = px.shape[0]
     if rows is not None:
-        if rows < 4:
-            raise InputError(f"--rows must be >= 4, got {rows}")
+        validate.at_least("--rows", rows, 4)
         if rows < h:
             px = np.asarray(resample_latlong(px, rows), dtype=np.float64)
     return px, h
@@ -111,8 +111,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
 def cmd_scene_run(args: argparse.Namespace) -> int:
     from relight.planning import format_plan, plan_scene, run_plan
 
-    if args.preview < 0 or args.preview > 4096:
-        raise InputError(f"--preview must lie in 0..4096, got {args.preview}")
+    validate.int_in_range("--preview", args.preview, 0, 4096)
     scene, px = _scene_and_pixels(args.scene)
     plan = plan_scene(scene, px)
     result = run_plan(plan, args.out, preview_size=args.preview).result

@@ -28,6 +28,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from relight import validate
+
 
 def cmd_fit(args: argparse.Namespace) -> int:
     from relight.brdf.spec import parse_brdf
@@ -99,10 +101,8 @@ def render_gaussian(args: argparse.Namespace) -> int:
         raise InputError("give either an SHRM file or --fit/--chain, not both")
     if args.local:
         raise InputError("--local is an SHRM option (eq. 6); Gaussian lobes are evaluated per pixel already")
-    if args.size < 1 or args.size > 8192:
-        raise InputError(f"--size must lie in 1..8192, got {args.size}")
-    if not 1 <= args.supersample <= 8:
-        raise InputError(f"--supersample must lie in 1..8, got {args.supersample}")
+    validate.int_in_range("--size", args.size, 1, 8192)
+    validate.int_in_range("--supersample", args.supersample, 1, 8)
     mat = parse_brdf(args.fit)
     if not isinstance(mat, GaussianLobes):
         raise InputError(f"--fit {args.fit!r} is not a gaussian-lobes material (kind {mat.kind!r})")

@@ -28,6 +28,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -92,8 +93,7 @@ def dfg_terms(nov: FloatArray, roughness: FloatArray, *, nodes_u: int = NODES_U,
 
 def dfg_table(size: int = 128, *, multiscatter: bool = False) -> FloatArray:
     """The (size, size, 2) table of the module docstring's layout: ``(A, B)`` or, multiscatter, ``(B, A + B)``."""
-    if not (isinstance(size, int) and 2 <= size <= MAX_SIZE):
-        raise InputError(f"DFG size must be an integer in [2, {MAX_SIZE}], got {size!r}")
+    size = validate.int_in_range("DFG size", size, 2, MAX_SIZE)
     c = (np.arange(size) + 0.5) / size
     out = np.empty((size, size, 2))
     for i in range(size):  # one roughness row at a time bounds memory to size x NODES_U x NODES_PHI

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import __version__, indexing, sh
+from relight import __version__, indexing, sh, validate
 from relight.brdf.coefficients import spectrum_for_tolerance
 from relight.brdf.vmf import VonMisesFisher, check_sigma, sigma_to_kappa, vmf_inner
 from relight.conventions import require_rgb_latlong
@@ -64,14 +64,12 @@ def chain_sigmas(sigma0: float, ratio: float, *, levels: int | None = None, sigm
                  ) -> FloatArray:
     """``sigma_j = sigma_0 ratio^j`` for ``levels`` levels, or until the first level reaching ``sigma_max``."""
     s0 = check_sigma(sigma0, "sigma0")
-    if not (math.isfinite(ratio) and ratio > 1.0):
-        raise InputError(f"chain: ratio must be > 1, got {ratio!r}")
+    validate.in_range("chain: ratio", ratio, 1.0, None, lo_open=True)
     if levels is None:
         if not sigma_max >= s0:
             raise InputError(f"chain: sigma_max must be >= sigma0 ({s0:g}), got {sigma_max!r}")
         levels = int(math.ceil(math.log(sigma_max / s0) / math.log(ratio) - 1e-9)) + 1
-    if not 1 <= levels <= MAX_LEVELS:
-        raise InputError(f"chain: levels must lie in [1, {MAX_LEVELS}], got {levels}")
+    levels = validate.int_in_range("chain: levels", levels, 1, MAX_LEVELS)
     sig = s0 * ratio ** np.arange(levels, dtype=np.float64)
     if sig[-1] > math.pi:
         raise InputError(f"chain: the widest level would have sigma {sig[-1]:.3g} > pi; use fewer levels")
@@ -112,15 +110,12 @@ def build_chain(
 ) -> GaussianChain:
     """The Gaussian chain of a lat-long map (H, W, 3) (module docstring): one projection, one synthesis per level;
     ``uniform_size`` synthesises every level at the largest size (a GPU texture array, ``relight.gl.gaussian``)."""
-    if not 0.0 < epsilon < 1.0:
-        raise InputError(f"chain: epsilon must lie in (0, 1), got {epsilon!r}")
+    validate.in_range("chain: epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
     px = require_rgb_latlong(pixels)
     h, w = px.shape[:2]
     s0 = default_sigma0(h) if sigma0 is None else sigma0
     sig = chain_sigmas(s0, ratio, levels=levels, sigma_max=sigma_max)
-    cap = h if size_cap is None else int(size_cap)
-    if cap < 2:
-        raise InputError(f"chain: size_cap must be >= 2, got {size_cap!r}")
+    cap = h if size_cap is None else validate.at_least("chain: size_cap", size_cap, 2)
     f_cap = h - 1
     t0 = time.perf_counter()
     lobes = [VonMisesFisher(float(s)) for s in sig]
@@ -167,8 +162,7 @@ def blend_kernel_error(ratio: float, frac: float, *, sigma: float = 1e-3) -> flo
     Closed form from the inner products of concentric vMF lobes (:func:`relight.brdf.vmf.vmf_inner`); for
     ``sigma`` << 1 it does not depend on sigma (the planar-Gaussian limit; 1e-3 rad by default).
     """
-    if not 0.0 <= frac <= 1.0:
-        raise InputError(f"frac must lie in [0, 1], got {frac!r}")
+    validate.in_range("frac", frac, 0.0, 1.0)
     k = sigma_to_kappa(np.array([sigma, sigma * ratio, sigma * ratio**frac]))
     c = np.array([1.0 - frac, frac, -1.0])
     gram = vmf_inner(k[:, None], k[None, :])

@@ -59,6 +59,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.conventions import luminance
 from relight.errors import InputError, RelightError
 
@@ -379,8 +380,7 @@ class TwinSettings:
         if self.spp < 1 or self.supersample < 1 or self.texels < 2:
             raise InputError(f"need spp >= 1, supersample >= 1 and texels >= 2, got {self.spp}, {self.supersample}, "
                              f"{self.texels}")
-        if not 0.0 < self.radius <= 1.0:
-            raise InputError(f"the compared radius must lie in (0, 1], got {self.radius}")
+        validate.in_range("the compared radius", self.radius, 0.0, 1.0, lo_open=True)
 
     def mask(self) -> NDArray[np.bool_]:
         """The compared blocks: those whose whole area lies within the radius."""

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.base import IsotropicBRDF, Lobe, RadialLobe
 from relight.brdf.measured import MERL_DIMS, MERLBRDF, half_diff_angles, trilinear
 from relight.brdf.models import SumBRDF
@@ -89,8 +90,7 @@ def _lobes(brdf: Lobe | SumBRDF) -> list[Lobe]:
 def transfer_slice(brdf: Lobe | SumBRDF, grid: SliceGrid, theta_o: float) -> tuple[FloatArray, FloatArray]:
     """``T`` at the grid's nodes for elevation theta_o, shape (M, C) (C = 1 or 3), and a validity mask (M,) as
     float (0 where a MERL lookup touches a missing sample)."""
-    if not (math.isfinite(theta_o) and 0.0 <= theta_o < math.pi / 2):
-        raise InputError(f"theta_o must lie in [0, pi/2), got {theta_o!r}")
+    validate.in_range("theta_o", theta_o, 0.0, math.pi / 2, hi_open=True)
     w = grid.world(theta_o)
     n = np.array([0.0, 0.0, 1.0])
     v = np.array([math.sin(theta_o), 0.0, math.cos(theta_o)])

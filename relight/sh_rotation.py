@@ -28,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.indexing import full_block, full_size
 
@@ -49,8 +50,7 @@ def check_rotations(r: ArrayLike, *, proper: bool = True) -> FloatArray:
     a = np.asarray(r, dtype=np.float64)
     if a.shape[-2:] != (3, 3):
         raise InputError(f"rotation matrices must have shape (..., 3, 3), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise InputError("rotation matrices must be finite")
+    validate.finite_array("rotation matrices", a)
     err = np.abs(np.einsum("...ki,...kj->...ij", a, a) - np.eye(3)).max(initial=0.0)
     if err > ORTHOGONALITY_TOL:
         raise InputError(f"rotation matrices must be orthogonal: |R^T R - I| = {err:.3g} > {ORTHOGONALITY_TOL:g}")

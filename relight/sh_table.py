@@ -155,8 +155,7 @@ def _project(brdf: FrameBRDF, v_all: FloatArray, order: int, refine: int) -> Flo
 
 
 def check_order(order: int) -> int:
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 0 <= order <= MAX_ORDER:
-        raise InputError(f"the table order F must be an integer in [0, {MAX_ORDER}], got {order!r}")
+    return validate.int_in_range("the table order F", order, 0, MAX_ORDER)
     return int(order)
 
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -39,8 +40,7 @@ def _unit_rows(v: ArrayLike, what: str) -> FloatArray:
     a = np.asarray(v, dtype=np.float64)
     if a.shape[-1:] != (3,):
         raise InputError(f"{what} must have a trailing axis of length 3, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise InputError(f"{what} must be finite")
+    validate.finite_array(what, a)
     n = np.linalg.norm(a, axis=-1, keepdims=True)
     if np.any(n == 0.0):
         raise InputError(f"{what} must be non-zero vectors")
@@ -126,8 +126,7 @@ def mesh_frames(normals: ArrayLike, tangents: ArrayLike) -> FloatArray:
     tw = np.asarray(tangents, dtype=np.float64)
     if tw.shape[-1:] not in ((3,), (4,)) or tw.shape[:-1] != n.shape[:-1]:
         raise InputError(f"tangents must have shape {n.shape[:-1] + (3,)} or {n.shape[:-1] + (4,)}, got {tw.shape}")
-    if not np.all(np.isfinite(tw)):
-        raise InputError("tangents must be finite")
+    validate.finite_array("tangents", tw)
     sign = np.ones(n.shape[:-1])
     if tw.shape[-1] == 4:
         w = tw[..., 3]

@@ -3,7 +3,9 @@ parameter and the value given, in one wording everywhere.
 
 ``finite("exposure", x)`` -> "exposure must be finite, got nan"; ``in_range("epsilon", e, 0, 1, lo_open=True,
 hi_open=True)`` -> "epsilon must lie in (0, 1), got 1.5"; ``at_least("size", s, 2)`` -> "size must be >= 2, got 1";
-``positive("height", h)`` -> "height must be positive, got 0". Each returns the value (as float, or int for the
+``positive("height", h)`` -> "height must be positive, got 0"; ``int_in_range("levels", n, 1, 32)`` -> "levels must be
+an integer in [1, 32], got 40"; ``finite_array("tangents", t)`` -> "tangents must be finite (3 non-finite values)".
+Each returns the value (as float, or int for the
 integer checks) so a caller can validate and convert in one line.
 """
 
@@ -11,6 +13,10 @@ from __future__ import annotations
 
 import math
 import numbers
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 from relight.errors import InputError
 
@@ -76,3 +82,22 @@ def positive_int(name: str, value: object) -> int:
     if v <= 0:
         raise InputError(f"{name} must be positive, got {value!r}")
     return v
+
+
+def int_in_range(name: str, value: object, lo: int, hi: int) -> int:
+    """``value`` as an int with ``lo <= value <= hi``."""
+    v = integer(name, value)
+    if not lo <= v <= hi:
+        raise InputError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    return v
+
+
+def finite_array(name: str, values: ArrayLike) -> NDArray[Any]:
+    """``values`` as an array (its own dtype), every element finite."""
+    import numpy as np  # here: the CLI imports this module at start-up, before it needs NumPy
+
+    a = np.asarray(values)
+    bad = a.size - int(np.count_nonzero(np.isfinite(a)))
+    if bad:
+        raise InputError(f"{name} must be finite ({bad} non-finite value{'s' if bad > 1 else ''})")
+    return a

@@ -14,6 +14,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 #: Largest finite float16.
@@ -29,10 +30,8 @@ def pack_float16(values: NDArray[np.floating], width: int = DEFAULT_WIDTH) -> tu
     a = np.asarray(values, dtype=np.float64)
     if a.ndim < 1 or a.shape[0] == 0:
         raise InputError(f"need per-vertex values of shape (V, ...), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise InputError("per-vertex values must be finite")
-    if width < 1:
-        raise InputError(f"texture width must be positive, got {width}")
+    validate.finite_array("per-vertex values", a)
+    validate.positive_int("texture width", width)
     v = a.shape[0]
     flat = a.reshape(v, -1)
     n = flat.shape[1]

@@ -38,6 +38,7 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.conventions import dirs_to_angles
 from relight.errors import InputError
 from relight.mesh.model import TriangleMesh
@@ -73,20 +74,16 @@ class TransferSettings:
     block: int = 4096
 
     def __post_init__(self) -> None:
-        if not 0 <= self.order <= MAX_ORDER:
-            raise InputError(f"order must be an integer in 0..{MAX_ORDER}, got {self.order}")
-        if not 16 <= self.rays <= MAX_RAYS:
-            raise InputError(f"rays per vertex must lie in 16..{MAX_RAYS}, got {self.rays}")
+        validate.int_in_range("order", self.order, 0, MAX_ORDER)
+        validate.int_in_range("rays per vertex", self.rays, 16, MAX_RAYS)
         if self.kind not in KINDS:
             raise InputError(f"unknown kind {self.kind!r}; expected one of {', '.join(KINDS)}")
         if self.bounces < 0 or self.bounces > 8 or (self.bounces and self.kind != "diffuse_transfer"):
             raise InputError(f"bounces must be 0..8 and only with kind diffuse_transfer, got {self.bounces}")
-        if not 0.0 <= self.albedo <= 1.0:
-            raise InputError(f"albedo must lie in [0, 1], got {self.albedo}")
+        validate.in_range("albedo", self.albedo, 0.0, 1.0)
         if self.sampling not in ("fibonacci", "random"):
             raise InputError(f"unknown sampling {self.sampling!r}; expected 'fibonacci' or 'random'")
-        if self.block < 1:
-            raise InputError(f"block must be positive, got {self.block}")
+        validate.positive_int("block", self.block)
 
 
 def fibonacci_sphere(n: int) -> FloatArray:

@@ -79,6 +79,7 @@ from collections.abc import Iterator
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -93,15 +94,11 @@ _SCALE_LIMIT = float(2.0**_SCALE_BITS)
 
 
 def check_lmax(lmax: int, name: str = "lmax") -> int:
-    if isinstance(lmax, bool) or not isinstance(lmax, (int, np.integer)) or int(lmax) < 0:
-        raise InputError(f"{name} must be a non-negative integer, got {lmax!r}")
-    return int(lmax)
+    return validate.at_least(name, lmax, 0)
 
 
 def _check_beta(beta: ArrayLike) -> FloatArray:
-    b = np.asarray(beta, dtype=np.float64)
-    if not np.all(np.isfinite(b)):
-        raise InputError(f"beta must be finite, got {b[~np.isfinite(b)].ravel()[:3].tolist()}")
+    b = validate.finite_array("beta", np.asarray(beta, dtype=np.float64))
     return b
 
 

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 #: Largest reference image edge (the brute force costs O(size^2 x environment pixels in the lobe)).
@@ -101,8 +102,7 @@ def mesh_reference_image(
     lo, hi = MESH_REFERENCE_DEPTHS
     if not lo <= max_depth <= hi:
         raise InputError(f"max_depth must be in {lo}..{hi} (2 = direct light), got {max_depth}")
-    if not 0.0 <= albedo <= 1.0:
-        raise InputError(f"albedo must be in [0, 1], got {albedo}")
+    validate.in_range("albedo", albedo, 0.0, 1.0)
     mesh = geometry_mod.from_bytes(geometry, vertices, faces).normalised()
     px = _read_map(envmap_path, max_pixels, env_rows)
     out = render_mesh_mitsuba(mesh, px, view=np.asarray(view, dtype=np.float64), size=size, spp=spp,

@@ -36,6 +36,7 @@ import numpy as np
 from cachetools import LRUCache
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.base import Lobe
 from relight.brdf.coefficients import spectrum_for_tolerance
 from relight.brdf.lobe_cache import lobe_cache, lobe_cache_key
@@ -171,10 +172,8 @@ def search_orders(
 ) -> BandSearch:
     """Smallest SHRM orders holding ``epsilon`` in every view band with N.V >= ``grazing_limit`` (module
     docstring). ``structure`` ("radial", "azimuthal", "general") and ``size`` price the maps for the guard."""
-    if not 0.0 < epsilon < 1.0:
-        raise ValueError(f"epsilon must lie in (0, 1), got {epsilon}")
-    if not 0.0 <= grazing_limit < 1.0:
-        raise ValueError(f"grazing_limit must lie in [0, 1), got {grazing_limit}")
+    validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
+    validate.in_range("grazing_limit", grazing_limit, 0.0, 1.0, hi_open=True)
     t0 = time.perf_counter()
     edges = band_edges(grazing_limit)
     lo_edges = np.asarray(edges[:-1])

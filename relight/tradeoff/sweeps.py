@@ -105,9 +105,7 @@ def sweep(
         validate.in_range("epsilon", e, 0.0, 1.0, lo_open=True, hi_open=True)
     for t in truncations:
         validate.in_range("truncation", t, 0.0, 1.0, lo_open=True, hi_open=True)
-    s = default_size(h) if size is None else int(size)
-    if not 2 <= s <= 4 * h:
-        raise InputError(f"size must lie in 2..{4 * h} for a {h}-row map, got {s}")
+    s = default_size(h) if size is None else validate.int_in_range(f"size (for a {h}-row map)", size, 2, 4 * h)
     if not isinstance(brdf, Lobe) and not hasattr(brdf, "lobes"):
         raise InputError(f"not a BRDF: {type(brdf).__name__}")
     radial = is_reflection_map(brdf)

@@ -58,3 +58,21 @@ def test_integers() -> None:
     assert validate.positive_int("height", 1) == 1
     with pytest.raises(InputError, match=r"^height must be positive, got 0$"):
         validate.positive_int("height", 0)
+
+
+def test_integer_ranges() -> None:
+    assert validate.int_in_range("levels", 1, 1, 32) == 1 and validate.int_in_range("levels", np.int32(32), 1, 32) == 32
+    for bad in (0, 33):
+        with pytest.raises(InputError, match=rf"^levels must be an integer in \[1, 32\], got {bad}$"):
+            validate.int_in_range("levels", bad, 1, 32)
+    with pytest.raises(InputError, match=r"^levels must be an integer, got 2.5$"):
+        validate.int_in_range("levels", 2.5, 1, 32)
+
+
+def test_finite_arrays() -> None:
+    ok = np.array([[0.0, 1.0], [2.0, -3.0]], dtype=np.float32)
+    assert validate.finite_array("t", ok) is not None and validate.finite_array("t", ok).dtype == np.float32
+    with pytest.raises(InputError, match=r"^tangents must be finite \(2 non-finite values\)$"):
+        validate.finite_array("tangents", [[0.0, math.nan], [math.inf, 1.0]])
+    with pytest.raises(InputError, match=r"^beta must be finite \(1 non-finite value\)$"):
+        validate.finite_array("beta", -math.inf)

@@ -200,13 +200,11 @@ export function initGaussianPanel(state, $, showError) {
   const status = (text) => { $('sg-status').textContent = text; };
   const request = (...args) => { sg.requests += 1; return state.api.request(...args); };
 
+  // the job's event stream (no polling): progress as it comes, the final job at its end
   async function waitJob(job) {
-    let pub = job;
-    while (!['succeeded', 'failed', 'cancelled'].includes(pub.state)) {
-      await new Promise((r) => { setTimeout(r, 300); });
-      pub = await request('GET', `/jobs/${job.id}`);
-      status(`${pub.kind}: ${pub.stage || pub.state} ${Math.round(100 * (pub.progress || 0))} %`);
-    }
+    const show = (p) => status(`${p.kind}: ${p.stage || p.state} ${Math.round(100 * (p.progress || 0))} %`);
+    const pub = ['succeeded', 'failed', 'cancelled'].includes(job.state) ? job
+      : await state.api.follow(job.id, show);
     if (pub.state !== 'succeeded') throw new Error(`${pub.kind} job ${pub.state}: ${pub.failure_reason || ''}`);
     return pub;
   }
