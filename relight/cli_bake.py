@@ -1,7 +1,8 @@
 """``relight bake``: engine outputs for a whole set of maps in one command (issue 17, item 7).
 
     relight bake MAPS... --target three|filament|gltf|babylon [--format ktx2,sh,gltf] [--size 256] [--levels L]
-                 [--epsilon E] [--sun extract|clamp=V|keep] --out DIR [-j N] [--server URL] [--json]
+                 [--epsilon E] [--sun extract|clamp=V|keep] [--pixel-format F] --out DIR [-j N] [--server URL]
+                 [--json]
 
 Items: per map, ``ktx2`` writes ``DIR/<stem>.<target>.ktx2`` (+ ``.json``, ``relight export``'s files), ``gltf``
 ``DIR/<stem>.glb`` (+ ``.json``; ``relight export --format gltf``, ``--target gltf`` only, computed locally) and
@@ -84,6 +85,9 @@ def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict
         raise InputError(f"gltf (EXT_lights_image_based) needs --target gltf, got {opts['target']!r}")
     if fmt == "gltf" and opts.get("server"):
         raise InputError("gltf items are computed locally only (the service exports ktx2 and sh)")
+    pixel_format = opts.get("pixel_format", "rgba16f")
+    if fmt == "ktx2" and opts.get("server") and pixel_format != "rgba16f":
+        raise InputError("--pixel-format other than rgba16f is written locally only (the service writes rgba16f)")
     if opts.get("server"):
         return remote_exporter()(opts["server"], path, fmt=fmt, target=opts["target"], size=opts["size"],  # type: ignore[no-any-return]
                                  levels=opts["levels"], epsilon=opts["epsilon"], sun=opts["sun"],
@@ -95,7 +99,7 @@ def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict
     source = {"path": str(path), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
     if fmt == "ktx2":
         files = chain_export(env.pixels, source, target=opts["target"], size=opts["size"], levels=opts["levels"],
-                             epsilon=opts["epsilon"], sun_spec=opts["sun"])
+                             epsilon=opts["epsilon"], sun_spec=opts["sun"], pixel_format=pixel_format)
     elif fmt == "gltf":
         files = gltf_export(env.pixels, source, size=opts["size"], levels=opts["levels"], epsilon=opts["epsilon"],
                             sun_spec=opts["sun"])
@@ -131,6 +135,8 @@ def run_item(i: int, path_text: str, fmt: str, out_dir: str, opts: dict[str, Any
     try:
         params = ({k: opts[k] for k in ("target", "size", "levels", "epsilon", "sun")} if fmt != "sh"
                   else {"sun": opts["sun"]})
+        if fmt == "ktx2" and opts.get("pixel_format", "rgba16f") != "rgba16f":  # absent: earlier keys stay valid
+            params["pixel_format"] = opts["pixel_format"]
         digest = _file_digest(path)
         key = _key(digest, fmt, params)
         if _done(manifest, key, [out, manifest]):
@@ -163,7 +169,7 @@ def cmd_bake(args: argparse.Namespace) -> int:
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     opts = {"target": args.target, "size": args.size, "levels": args.levels, "epsilon": args.epsilon,
-            "sun": args.sun, "server": args.server, "api_key": args.api_key}
+            "sun": args.sun, "server": args.server, "api_key": args.api_key, "pixel_format": args.pixel_format}
     items = [(m, fmt) for m in args.maps for fmt in formats]
     rows: list[dict[str, Any]] = []
 
@@ -209,6 +215,8 @@ def register(sub: Any) -> None:
     bp.add_argument("--levels", type=int, default=None)
     bp.add_argument("--epsilon", type=float, default=2.5e-5)
     bp.add_argument("--sun", default="keep")
+    bp.add_argument("--pixel-format", default="rgba16f", choices=["rgba16f", "b10g11r11", "e5b9g9r9"],
+                    help="KTX2 texels (local bakes)")
     bp.add_argument("--out", required=True, help="output folder (created)")
     bp.add_argument("-j", "--jobs", type=int, default=1, help="items at a time (processes locally, threads with "
                     "--server)")

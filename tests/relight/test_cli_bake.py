@@ -57,7 +57,10 @@ def test_bake_then_rerun_skips(tmp_path: Path) -> None:
     rows = json.loads(again.stdout)["items"]
     assert [r["status"] for r in rows] == ["skipped"] * 4
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == mtimes
-    # a changed parameter is a different item: redone
+    # a changed parameter is a different item: redone (the pixel format too; the default keeps earlier keys)
+    packed = _bake(str(maps[0]), "--target", "gltf", "--size", "4", "--format", "ktx2", "--pixel-format",
+                   "b10g11r11", "--out", str(out))
+    assert "1 done" in packed.stdout and read_ktx2((out / "a.gltf.ktx2").read_bytes()).vk_format == 122
     third = _bake(*map(str, maps), "--target", "gltf", "--size", "4", "--sun", "clamp=0.5", "--out", str(out))
     assert "4 done" in third.stdout
 
