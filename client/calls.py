@@ -104,8 +104,9 @@ class IblExport:
 
 
 def ibl_params(target: str, format: str, size: int, levels: int | None, epsilon: float,
-               sun: str) -> dict[str, Any]:
-    params: dict[str, Any] = {"target": target, "format": format, "size": size, "epsilon": epsilon, "sun": sun}
+               sun: str, pixel_format: str = "rgba16f") -> dict[str, Any]:
+    params: dict[str, Any] = {"target": target, "format": format, "size": size, "epsilon": epsilon, "sun": sun,
+                              "pixel_format": pixel_format}
     if levels is not None:
         params["levels"] = levels
     return params

@@ -13,7 +13,7 @@ from typing import Any
 
 
 def remote_export(server: str, path: Path, *, fmt: str, target: str, size: int, levels: int | None,
-                  epsilon: float, sun: str, api_key: str | None = None,
+                  epsilon: float, sun: str, pixel_format: str = "rgba16f", api_key: str | None = None,
                   timeout: float = 600.0) -> tuple[bytes, dict[str, Any]]:
     """(file bytes, manifest) of one export of the map at ``path`` computed by the service at ``server``."""
     from relight.client.sdk import RelightClient
@@ -21,5 +21,5 @@ def remote_export(server: str, path: Path, *, fmt: str, target: str, size: int, 
     with RelightClient(server, api_key=api_key, timeout=timeout) as c:
         env = c.upload_envmap(path)
         out = c.ibl(env.id, target=target, format=fmt, size=size, levels=levels, epsilon=epsilon, sun=sun,
-                    timeout=timeout)
+                    pixel_format=pixel_format, timeout=timeout)
     return out.data, out.manifest

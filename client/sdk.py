@@ -191,11 +191,11 @@ class RelightClient:
             time.sleep(poll_interval)
 
     def ibl(self, envmap: str, *, target: str = "three", format: str = "ktx2", size: int = 256,
-            levels: int | None = None, epsilon: float = 2.5e-5, sun: str = "keep",
+            levels: int | None = None, epsilon: float = 2.5e-5, sun: str = "keep", pixel_format: str = "rgba16f",
             timeout: float | None = None) -> IblExport:
         """An engine export of an uploaded map (``GET /envmaps/{id}/ibl``, computed as a job and cached): waits for
         the job, then returns the file and its manifest."""
-        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun))
+        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun, pixel_format))
         answer = self._do(call)
         while answer.data is None:
             self.wait(answer.job_id, timeout=timeout)
@@ -386,9 +386,9 @@ class AsyncRelightClient:
 
     async def ibl(self, envmap: str, *, target: str = "three", format: str = "ktx2", size: int = 256,
                   levels: int | None = None, epsilon: float = 2.5e-5, sun: str = "keep",
-                  timeout: float | None = None) -> IblExport:
+                  pixel_format: str = "rgba16f", timeout: float | None = None) -> IblExport:
         """:meth:`RelightClient.ibl`."""
-        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun))
+        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun, pixel_format))
         answer = await self._do(call)
         while answer.data is None:
             await self.wait(answer.job_id, timeout=timeout)

@@ -25,6 +25,8 @@ class IblCreate(Strict):
     epsilon: float = Field(2.5e-5, ge=1e-8, lt=1.0, description="uncaptured lobe energy per level (seed 000 §5.1)")
     sun: str = Field("keep", max_length=40, pattern=SUN_PATTERN,
                      description="extract (directional light + residual), clamp=V or keep")
+    pixel_format: Literal["rgba16f", "b10g11r11", "e5b9g9r9"] = Field(
+        "rgba16f", description="KTX2 texels: RGBA16F or a 4-byte packed unsigned float (relight.packed_float)")
 
     @model_validator(mode="after")
     def _power_of_two(self) -> IblCreate:

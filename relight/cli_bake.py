@@ -86,12 +86,10 @@ def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict
     if fmt == "gltf" and opts.get("server"):
         raise InputError("gltf items are computed locally only (the service exports ktx2 and sh)")
     pixel_format = opts.get("pixel_format", "rgba16f")
-    if fmt == "ktx2" and opts.get("server") and pixel_format != "rgba16f":
-        raise InputError("--pixel-format other than rgba16f is written locally only (the service writes rgba16f)")
     if opts.get("server"):
         return remote_exporter()(opts["server"], path, fmt=fmt, target=opts["target"], size=opts["size"],  # type: ignore[no-any-return]
                                  levels=opts["levels"], epsilon=opts["epsilon"], sun=opts["sun"],
-                                 api_key=opts.get("api_key"))
+                                 pixel_format=pixel_format, api_key=opts.get("api_key"))
     from relight.engine_export import chain_export, gltf_export, sh_export
     from relight.envmap import read_envmap
 
@@ -216,7 +214,7 @@ def register(sub: Any) -> None:
     bp.add_argument("--epsilon", type=float, default=2.5e-5)
     bp.add_argument("--sun", default="keep")
     bp.add_argument("--pixel-format", default="rgba16f", choices=["rgba16f", "b10g11r11", "e5b9g9r9"],
-                    help="KTX2 texels (local bakes)")
+                    help="KTX2 texels")
     bp.add_argument("--out", required=True, help="output folder (created)")
     bp.add_argument("-j", "--jobs", type=int, default=1, help="items at a time (processes locally, threads with "
                     "--server)")

@@ -79,14 +79,12 @@ def cmd_export(args: argparse.Namespace) -> int:
         return _export_gltf(args, out)
     if args.into:
         raise InputError("--into needs --format gltf")
-    if args.server and args.pixel_format != "rgba16f":
-        raise InputError("--pixel-format other than rgba16f is written locally only (the service writes rgba16f)")
     if args.server:  # the same export from the service (relight.cli_bake.remote_exporter): identical bytes
         from relight.cli_bake import remote_exporter
 
         data, manifest = remote_exporter()(args.server, Path(args.envmap), fmt="ktx2", target=args.target,
                                            size=args.size, levels=args.levels, epsilon=args.epsilon, sun=args.sun,
-                                           api_key=args.api_key)
+                                           pixel_format=args.pixel_format, api_key=args.api_key)
         _write_atomic(out, data)
         _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
     else:

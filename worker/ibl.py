@@ -29,7 +29,8 @@ def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
     ctx.report("prefiltering", 0.2)
     if request["format"] == "ktx2":
         files = chain_export(env.pixels, source, target=request["target"], size=int(request["size"]),
-                             levels=request.get("levels"), epsilon=float(request["epsilon"]), sun_spec=request["sun"])
+                             levels=request.get("levels"), epsilon=float(request["epsilon"]), sun_spec=request["sun"],
+                             pixel_format=request.get("pixel_format", "rgba16f"))
         name, media = "chain.ktx2", KTX2_MEDIA_TYPE
     else:
         files = sh_export(env.pixels, source, sun_spec=request["sun"])

@@ -33,6 +33,8 @@ async def _prepare(create: IblCreate, services: Services) -> dict[str, Any]:
         raise Unprocessable(f"sun: {exc}") from None
     if create.format == "sh":  # the chain's parameters do not change an SH export: one job for all of them
         return {"envmap": env.id, "format": "sh", "sun": create.sun}
+    if create.pixel_format == "rgba16f":  # the default is left out of the canonical request
+        return {"envmap": env.id, **create.model_dump(mode="json", exclude={"envmap", "pixel_format"})}
     return {"envmap": env.id, **create.model_dump(mode="json", exclude={"envmap"})}
 
 

@@ -36,11 +36,12 @@ async def envmap_ibl(envmap_id: str, request: Request, services: ServicesDep,
                      size: Annotated[int, Query(ge=1, le=1024)] = 256,
                      levels: Annotated[int | None, Query(ge=1, le=11)] = None,
                      epsilon: Annotated[float, Query(ge=1e-8, lt=1.0)] = 2.5e-5,
-                     sun: Annotated[str, Query(max_length=40)] = "keep") -> StarletteResponse:
+                     sun: Annotated[str, Query(max_length=40)] = "keep",
+                     pixel_format: Literal["rgba16f", "b10g11r11", "e5b9g9r9"] = "rgba16f") -> StarletteResponse:
     """The prefiltered cube chain (``format=ktx2``) or SH9 (``format=sh``) of the map for an engine: the same
     parameters and bytes as ``relight export``. 202 with the job until it has succeeded, then the file."""
     body: dict[str, Any] = {"envmap": envmap_id, "target": target, "format": format, "size": size,
-                            "levels": levels, "epsilon": epsilon, "sun": sun}
+                            "levels": levels, "epsilon": epsilon, "sun": sun, "pixel_format": pixel_format}
     try:
         IblCreate.model_validate(body)
     except ValidationError as exc:

@@ -73,6 +73,17 @@ def test_ktx2_resource_equals_the_core(http: httpx.Client, served: dict[str, Any
                     headers={"If-None-Match": again.headers["etag"]}).status_code == 304
 
 
+def test_packed_pixel_format_equals_the_core(http: httpx.Client, served: dict[str, Any]) -> None:
+    r = _get_when_done(http, f"/envmaps/{served['env']}/ibl", {"size": 4, "pixel_format": "e5b9g9r9"})
+    local = chain_export(read_envmap(served["path"]).pixels, {}, target="three", size=4, levels=None,
+                         epsilon=2.5e-5, sun_spec="keep", pixel_format="e5b9g9r9")
+    assert r.content == local.data and read_ktx2(r.content).vk_format == 123
+    # the default is left out of the canonical request: naming it is the same job as not naming it
+    a = _get_when_done(http, f"/envmaps/{served['env']}/ibl", {"size": 4})
+    b = http.get(f"/envmaps/{served['env']}/ibl", params={"size": 4, "pixel_format": "rgba16f"})
+    assert b.status_code == 200 and a.headers["x-relight-job"] == b.headers["x-relight-job"]
+
+
 def test_sh_resource_ignores_chain_parameters(http: httpx.Client, served: dict[str, Any]) -> None:
     r = _get_when_done(http, f"/envmaps/{served['env']}/ibl", {"format": "sh", "size": 16})
     local = sh_export(read_envmap(served["path"]).pixels, {"envmap": served["env"], "height": 32, "width": 64},
