@@ -269,11 +269,23 @@ def rough_order(lobe: Any, epsilon: float) -> int:
     (``spectrum_for_tolerance``), the half-angle curve's l* at ``1 - epsilon`` for the others (seed 004 §4's recipe,
     ``relight.factor_predict``); used only to decide whether SH lighting to ``F_MAX`` is exact."""
     from relight.brdf.base import RadialLobe
-    from relight.brdf.coefficients import spectrum_for_tolerance
 
     if isinstance(lobe, RadialLobe):
-        return int(spectrum_for_tolerance(lobe, epsilon)[1])
+        return _radial_order(predict.spec_key([type(lobe).__qualname__, lobe.spec()]), lobe, float(epsilon))
     return _half_angle_order(predict.spec_key(lobe.spec()), round(1.0 - epsilon, 12))
+
+
+_RADIAL_ORDERS: dict[tuple[str, float], int] = {}
+
+
+def _radial_order(key: str, lobe: Any, epsilon: float) -> int:
+    from relight.brdf.coefficients import spectrum_for_tolerance
+
+    if (key, epsilon) not in _RADIAL_ORDERS:
+        if len(_RADIAL_ORDERS) > 1024:
+            _RADIAL_ORDERS.clear()
+        _RADIAL_ORDERS[(key, epsilon)] = int(spectrum_for_tolerance(lobe, epsilon)[1])
+    return _RADIAL_ORDERS[(key, epsilon)]
 
 
 @lru_cache(maxsize=256)

@@ -142,6 +142,7 @@ def gaussian_error(spec: Any, epsilon: float) -> dict[str, float]:
             "chain": math.sqrt(epsilon)}
 
 
+@lru_cache(maxsize=64)
 def chain_levels(height: int, epsilon: float, f_l: int | None) -> tuple[list[int], list[int], list[float]]:
     """Orders, rows and sigmas of the chain ``relight.gaussian_chain.build_chain`` builds at this tolerance
     (the orders capped by the lighting's F_L and the map's H - 1, as there), without building it."""

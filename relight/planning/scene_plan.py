@@ -19,6 +19,7 @@ import json
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -112,13 +113,21 @@ def material_parts(material: Any) -> tuple[list[Any], list[Any]]:
     return [t.lobe for t in terms if isinstance(t, LobeAdapter)], [t for t in terms if not isinstance(t, LobeAdapter)]
 
 
+@lru_cache(maxsize=8)
+def _sample(name: str) -> Any:
+    """A sample mesh, decoded once per process (plans of the same scene do not read it again)."""
+    from relight.mesh import sample_mesh
+
+    return sample_mesh(name)
+
+
 def resolve_meshes(scene: Scene, meshes: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Every mesh the scene's objects name: given (the service passes uploaded meshes by id), a sample shape
     (``relight.mesh.sample_mesh``) or a mesh file (``relight.mesh.load_mesh``)."""
     from pathlib import Path
 
     from relight.errors import InputError
-    from relight.mesh import load_mesh, sample_mesh
+    from relight.mesh import load_mesh
 
     out: dict[str, Any] = {}
     for o in scene.objects:
@@ -128,7 +137,7 @@ def resolve_meshes(scene: Scene, meshes: Mapping[str, Any] | None = None) -> dic
         if meshes is not None and ref in meshes:
             out[ref] = meshes[ref]
         elif o.mesh is None:
-            out[ref] = sample_mesh(ref)
+            out[ref] = _sample(ref)
         elif Path(ref).is_file():
             out[ref] = load_mesh(ref)
         else:

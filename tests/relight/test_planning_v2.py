@@ -292,3 +292,28 @@ def test_rays_for_meets_its_bound() -> None:
         r = assign.rays_for(target, norm)
         assert norm / math.sqrt(r) <= target or r == assign.MAX_RAYS
         assert r == assign.MIN_RAYS or norm / math.sqrt(r // 2) > target
+
+
+# ------------------------------------------------------------------------------------------------ measured
+@pytest.mark.slow
+def test_measured_errors_within_predicted() -> None:
+    """Each representation as drawn (relight.planning.measure: the plan's own fit and chain, table or maps) against
+    the brute-force angular reference of the same lobe on the sphere: within the predicted relative RMS wherever the
+    prediction is a bound (``error_kind == "bounded"``); the measured value is reported either way."""
+    from relight.planning.measure import measure_lobes
+
+    objs = [obj("phong:s=64", "gloss", view=[0.2, 0.6, 0.7]), obj("lambert", "chalk"),
+            obj("torrance-sparrow:alpha=0.3,fresnel=none", "edited", view=[0.3, 0.5, 0.8]),
+            obj(GLOSSY, "edited2")]
+    static = planning.plan_scene(planning.scene_from_dict({"environment": "test", "epsilon": EPS, "size": 64,
+                                                           "material_edits": ["edited", "edited2"],
+                                                           "objects": objs}), env(), calibration=CAL)
+    dynamic = plan([obj("phong:s=8", "low")], lighting="dynamic")
+    rows = [(p, o.name) for p in (static, dynamic) for o in p.report.objects]
+    seen = set()
+    for p, name in rows:
+        for m in measure_lobes(p, name):
+            seen.add(m["representation"])
+            assert m["measured"] is not None and m["error_kind"] == "bounded", (name, m)
+            assert m["measured"] <= m["predicted"], (name, m)
+    assert seen == {"reflection_map", "irradiance", "gaussian_lobes", "sh_table"}
