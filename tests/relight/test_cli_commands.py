@@ -29,7 +29,7 @@ SERVICE_OPTIONS = {
     "worker": {"--scheduler", "--nthreads", "--name", "--memory-limit", "--host", "--no-nanny"},
     "upload": {"--name", "--server", "--api-key", "--timeout", "--json"},
     "submit": {"--brdf", "--epsilon", "--order", "--p-order", "--size", "--wait", "--wait-timeout", "--out",
-               "--server", "--api-key", "--timeout", "--json"},
+               "--server", "--api-key", "--timeout", "--json", "--sun"},
     "jobs": {"--state", "--limit", "--server", "--api-key", "--timeout", "--json"},
 }
 

@@ -30,14 +30,15 @@ JOB_KEYS = {"representation", "reason", "orders", "predicted_error", "size", "co
             "predicted_seconds", "cost_model"}
 PLAN_KEYS = {"format", "relight_version", "scene", "environment", "epsilon", "time_budget_s", "mode", "lighting",
              "computations", "objects", "brdf_seconds", "predicted_seconds", "predicted_stages", "predicted_error",
-             "cost_model"}
+             "cost_model", "jobs", "lighting_mode", "frame"}
 BUDGET_KEYS = {"budget_met", "budget_ladder", "budget_note"}
 COMPUTATION_KEYS = {"id", "lobe", "kind", "center", "representation", "structure", "reason", "F_rho", "P_rho", "F_L",
                     "F_B", "P_B", "n_maps", "n_coefficients", "size", "epsilon_rho", "epsilon_rho_below",
                     "predicted", "shared_by", "order_search_probes"}
 OBJECT_KEYS = {"name", "shape", "size", "distance", "material", "view", "view_dependent", "viewer", "shrm",
                "view_spread_deg", "p_delta", "near_below_distance", "output_rows", "computations", "predicted_error",
-               "effects"}
+               "effects", "representations", "per_frame_ms", "shadows_requested", "interreflections",
+               "material_edited"}  # planner v2 (issue 16): what each lobe is drawn with, and the object's inputs
 VIEW_KEYS = {"by_view", "grazing_limit"}  # left out of the JSON while None (relight.reports.OMIT_NONE)
 SUMMARY_KEYS = {"rms_min_of_errors", "rms_appendix_b", "epsilon_min_of_errors", "epsilon_appendix_b"}
 
@@ -118,6 +119,9 @@ def test_scene_plan_keys_in_both_modes() -> None:
         assert json.loads(planning.plan_json(planning.plan_scene(sc, PX, calibration=CAL))).keys() == d.keys()
         assert set(d) == PLAN_KEYS | extra
         assert set(d["lighting"]) == {"F_proj", "projected_once", "input", "seconds", "shared_by", "reason"}
+        assert {"budget_ms", "predicted_ms", "met", "per_object_ms", "downgrades", "note"} <= set(d["frame"])
+        assert set(d["frame"]["per_object_ms"]) == {"a", "b"} and d["lighting_mode"] == "static"
+        assert {c["id"] for c in d["computations"]} <= {j["params"].get("computation") for j in d["jobs"]}
         assert all(set(c) == COMPUTATION_KEYS for c in d["computations"])
         assert all(set(o) == OBJECT_KEYS for o in d["objects"]) and set(d["predicted_error"]) == SUMMARY_KEYS
         assert all(set(e) == {"effect", "simulated", "reason"} for o in d["objects"] for e in o["effects"])
