@@ -15,11 +15,12 @@
         ``--format gltf [--into MODEL.glb]`` (``--target gltf``): a GLB with the chain as EXT_lights_image_based
         (RGBD PNG faces, SH9 irradiance) and an extracted sun as a KHR_lights_punctual light (``relight.gltf_ibl``).
 
-    relight dfg [--size 128] [--multiscatter] --out FILE.exr|FILE.png
+    relight dfg [--size 128] [--multiscatter] --out FILE.exr|FILE.png|FILE.ktx2
         the split-sum DFG table (``relight.dfg``; docs/conventions.md "DFG"): R, G = (A, B) or, multiscatter,
-        (B, A + B); EXR float32 (B channel 0) or 16-bit PNG (linear, values x 65535, B channel 0).
+        (B, A + B); EXR float32 (B channel 0), 16-bit PNG (linear, values x 65535, B channel 0) or a 2-D KTX2
+        (``relight.ktx2``, RGBA16F, B 0, A 1, one level, the table's layout under ``relight.dfg``).
 
-    relight sh ENVMAP [--convention three|gltf|filament|babylon|raw] [--out FILE.json]
+    relight sh ENVMAP [--convention three|gltf|filament|babylon|unity|raw] [--out FILE.json]
         the map's order-2 SH lighting (9 RGB coefficients) in that engine's order, sign and scaling
         (``relight.sh9``, docs/conventions.md "SH9"), as JSON on stdout or in FILE.
 
@@ -37,7 +38,7 @@ from typing import Any
 
 #: ``relight.sh9.CONVENTIONS``, repeated so that registering the command imports nothing numerical
 #: (tests/relight/test_cli_export.py checks they agree).
-SH_CONVENTIONS = ("three", "gltf", "filament", "babylon", "raw")
+SH_CONVENTIONS = ("three", "gltf", "filament", "babylon", "unity", "raw")
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -167,8 +168,8 @@ def cmd_dfg(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise InputError(f"the folder of --out does not exist: {out.parent}")
     suffix = out.suffix.lower()
-    if suffix not in (".exr", ".png"):
-        raise InputError(f"--out must end in .exr or .png, got {out.name!r}")
+    if suffix not in (".exr", ".png", ".ktx2"):
+        raise InputError(f"--out must end in .exr, .png or .ktx2, got {out.name!r}")
     table = dfg_table(args.size, multiscatter=args.multiscatter)
     rgb = np.concatenate([table, np.zeros(table.shape[:2] + (1,))], axis=-1)
     fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=suffix)
@@ -178,6 +179,14 @@ def cmd_dfg(args: argparse.Namespace) -> int:
             from relight.envmap.exr import write_exr
 
             write_exr(tmp, rgb.astype(np.float32))
+        elif suffix == ".ktx2":
+            from relight import __version__
+            from relight.ktx2 import write_ktx2
+
+            layout = "(B, A + B)" if args.multiscatter else "(A, B)"
+            meta = {"dfg": {"channels": layout, "rows": "r = (i + 0.5) / N", "columns": "NoV = (j + 0.5) / N",
+                            "size": args.size}}
+            Path(tmp).write_bytes(write_ktx2([rgb[None]], meta, writer=f"relight {__version__}"))
         else:
             import imagecodecs  # 16-bit PNG (libpng), as relight.envmap.ldr reads them
 
@@ -216,7 +225,7 @@ def register(sub: Any) -> None:
     dp = sub.add_parser("dfg", help="the split-sum DFG lookup table (GGX, height-correlated Smith, Schlick)")
     dp.add_argument("--size", type=int, default=128)
     dp.add_argument("--multiscatter", action="store_true", help="Filament's (B, A + B) layout")
-    dp.add_argument("--out", required=True, help="FILE.exr (float32) or FILE.png (16-bit)")
+    dp.add_argument("--out", required=True, help="FILE.exr (float32), FILE.png (16-bit) or FILE.ktx2 (RGBA16F)")
     dp.set_defaults(func=cmd_dfg)
 
     sp = sub.add_parser("sh", help="order-2 SH lighting (9 RGB coefficients) in an engine's convention")

@@ -10,6 +10,7 @@ r187's KTX2Loader maps them to ``RGBFormat`` with ``UnsignedInt101111Type`` / ``
 samples: unsigned-float R, G, B at bit offsets 0, 11, 22 (lengths 11, 11, 10; qualifier FLOAT, lower 0.0f, upper
 1.0f), and for the shared exponent, as KTX-Software's DFD utilities write it, each channel's 9-bit mantissa (lower
 0, upper 8448) followed by its exponent sample (bits 27-31, qualifier EXPONENT, lower 15, upper 31).
+2-D textures (``faceCount = 1``, e.g. ``relight dfg``'s table) are written the same way with one face.
 Cube maps have ``faceCount = 6`` and faces in the Vulkan / OpenGL order
 +X, -X, +Y, -Y, +Z, -Z with the OpenGL face orientation (docs/conventions.md), which is what ``relight.envmap``'s
 cube functions use; KTX2 has no orientation key for cube maps.
@@ -120,7 +121,8 @@ def to_half_rgba(faces: NDArray[np.floating]) -> tuple[NDArray[np.float16], int]
 
 def write_ktx2(levels: Sequence[NDArray[np.floating]], metadata: Mapping[str, Any] | None = None,
                *, writer: str = "relight", vk_format: int = VK_FORMAT_R16G16B16A16_SFLOAT) -> bytes:
-    """A cube-map KTX2 file from mip levels ``levels[i]`` of shape (6, s_i, s_i, 3), s_i = s_0 >> i.
+    """A cube-map KTX2 file from mip levels ``levels[i]`` of shape (6, s_i, s_i, 3), s_i = s_0 >> i, or a 2-D
+    texture from levels of shape (1, s_i, s_i, 3) (``faceCount`` 1).
 
     ``metadata`` entries are stored as JSON under ``relight.<key>``. Values are converted to float16 (clamped) or
     packed (``vk_format`` 122 or 123, module docstring).
@@ -129,10 +131,13 @@ def write_ktx2(levels: Sequence[NDArray[np.floating]], metadata: Mapping[str, An
     if not levels:
         raise InputError("a KTX2 chain needs at least one level")
     size = int(np.asarray(levels[0]).shape[1])
+    n_faces = int(np.asarray(levels[0]).shape[0])
+    if n_faces not in (1, 6):
+        raise InputError(f"a KTX2 texture here has 1 face (2-D) or 6 (cube), got {n_faces}")
     payloads: list[bytes] = []
     for i, lv in enumerate(levels):
         arr = np.asarray(lv)
-        want = (6, max(size >> i, 1), max(size >> i, 1), 3)
+        want = (n_faces, max(size >> i, 1), max(size >> i, 1), 3)
         if arr.shape != want:
             raise InputError(f"level {i} must have shape {want}, got {arr.shape}")
         payloads.append(_encode(arr, vk_format))
@@ -154,15 +159,16 @@ def write_ktx2(levels: Sequence[NDArray[np.floating]], metadata: Mapping[str, An
         offsets[i] = cursor
         body += payloads[i]
         cursor += len(payloads[i])
-    header = _HEADER.pack(vk_format, 2 if vk_format == VK_FORMAT_R16G16B16A16_SFLOAT else 4, size, size, 0, 0, 6, n, 0,
-                          dfd_offset, len(dfd), kvd_offset, len(kvd), 0, 0)
+    header = _HEADER.pack(vk_format, 2 if vk_format == VK_FORMAT_R16G16B16A16_SFLOAT else 4, size, size, 0, 0,
+                          n_faces, n, 0, dfd_offset, len(dfd), kvd_offset, len(kvd), 0, 0)
     index = b"".join(_LEVEL.pack(offsets[i], len(p), len(p)) for i, p in enumerate(payloads))
     return IDENTIFIER + header + index + dfd + kvd + bytes(body)
 
 
 @dataclass(frozen=True)
 class Ktx2Cube:
-    """What :func:`read_ktx2` returns: float32 levels (6, s, s, 4) and the decoded key/value data."""
+    """What :func:`read_ktx2` returns: float32 levels (faces, s, s, 4) (6 faces, or 1 for a 2-D texture) and the
+    decoded key/value data."""
 
     vk_format: int
     size: int
@@ -183,8 +189,9 @@ def read_ktx2(data: bytes) -> Ktx2Cube:
     (vk, type_size, width, height, depth, layers, faces, n, scheme, dfd_off, dfd_len, kvd_off, kvd_len,
      _sgd_off, _sgd_len) = _HEADER.unpack_from(data, 12)
     if vk not in PIXEL_FORMATS.values() or type_size != (2 if vk == VK_FORMAT_R16G16B16A16_SFLOAT else 4) \
-            or faces != 6 or scheme != 0:
-        raise InputError(f"only uncompressed RGBA16F, B10G11R11 and E5B9G9R9 cube maps are read here (vkFormat {vk}, "
+            or faces not in (1, 6) or scheme != 0:
+        raise InputError("only uncompressed RGBA16F, B10G11R11 and E5B9G9R9 cube maps and 2-D textures are read here "
+                         f"(vkFormat {vk}, "
                          f"faces {faces}, supercompression {scheme})")
     texel = _texel_bytes(vk)
     if width != height or depth != 0 or layers != 0 or not 1 <= n <= 32:
@@ -193,16 +200,16 @@ def read_ktx2(data: bytes) -> Ktx2Cube:
     for i in range(n):
         off, length, _ = _LEVEL.unpack_from(data, 12 + _HEADER.size + i * _LEVEL.size)
         s = max(width >> i, 1)
-        if length != 6 * s * s * texel or off + length > len(data):
-            raise InputError(f"level {i} has {length} bytes at {off}; expected {6 * s * s * texel}")
+        if length != faces * s * s * texel or off + length > len(data):
+            raise InputError(f"level {i} has {length} bytes at {off}; expected {faces * s * s * texel}")
         if vk == VK_FORMAT_R16G16B16A16_SFLOAT:
-            arr = np.frombuffer(data, dtype="<f2", count=6 * s * s * 4, offset=off)
-            levels.append(arr.astype(np.float32).reshape(6, s, s, 4))
+            arr = np.frombuffer(data, dtype="<f2", count=faces * s * s * 4, offset=off)
+            levels.append(arr.astype(np.float32).reshape(faces, s, s, 4))
             continue
-        words = np.frombuffer(data, dtype="<u4", count=6 * s * s, offset=off).reshape(6, s, s)
+        words = np.frombuffer(data, dtype="<u4", count=faces * s * s, offset=off).reshape(faces, s, s)
         rgb = (packed_float.unpack_b10g11r11(words) if vk == VK_FORMAT_B10G11R11_UFLOAT_PACK32
                else packed_float.unpack_e5b9g9r9(words))
-        levels.append(np.concatenate([rgb, np.ones((6, s, s, 1))], axis=-1).astype(np.float32))
+        levels.append(np.concatenate([rgb, np.ones((faces, s, s, 1))], axis=-1).astype(np.float32))
     meta: dict[str, Any] = {}
     writer = ""
     pos, end = kvd_off, kvd_off + kvd_len

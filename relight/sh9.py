@@ -21,6 +21,13 @@ by ``A_0 = pi``, ``A_1 = 2 pi / 3``, ``A_2 = pi / 4``. The conventions (docs/con
   with ``SphericalHarmonics.FromArray`` and divides by pi).
 * ``filament``: ``(A_l / pi) K_k c_k``, cmgen ``--sh-shader``'s pre-scaled form: the shader's ``sum f_k P_k(n)`` is
   the irradiance over pi (sign-free: ``K_k c_k`` does not depend on the sign of K_k).
+* ``unity``: ``U_k (A_l / pi) K_k c_k``, Unity's ``SphericalHarmonicsL2`` (``sh[rgb, k]``; ``RenderSettings.
+  ambientProbe``, ``LightProbes``): the same pre-scaled irradiance-over-pi numbers as ``filament``, which Unity's
+  shader reads as ``sum f_k P_k(n)`` through its packing ``unity_SHA* = (f_3, f_1, f_2, f_0 - f_6)``,
+  ``unity_SHB* = (f_4, f_5, 3 f_6, f_7)``, ``unity_SHC = f_8`` (``SHEvalLinearL0L1``, ``SHEvalLinearL2``), but
+  on Unity's left-handed axes: Unity's direction is relight's ``(-x, y, z)`` (+Y up, +Z forward; the X flip with
+  which glTFast and UnityGLTF import glTF), so ``U = [+, +, +, -, -, +, +, -, +]``, the sign of ``P_k`` under
+  ``x -> -x``.
 * ``raw``: relight's own real SH coefficients of radiance to l = 2 (``relight.sh``, index ``l^2 + l + m`` in the SH
   frame ``(X, Z, Y)``, docs/conventions.md).
 
@@ -42,7 +49,7 @@ from relight.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
-CONVENTIONS: Final = ("three", "gltf", "filament", "babylon", "raw")
+CONVENTIONS: Final = ("three", "gltf", "filament", "babylon", "unity", "raw")
 #: Coefficient names in the order of the engines' arrays (Babylon's field names).
 NAMES: Final = ("l00", "l1_1", "l10", "l11", "l2_2", "l2_1", "l20", "l21", "l22")
 #: Degree of each coefficient.
@@ -53,11 +60,16 @@ K: Final = np.array([math.sqrt(1 / (4 * math.pi))] + [math.sqrt(3 / (4 * math.pi
                     + [math.sqrt(15 / (4 * math.pi)), math.sqrt(15 / (16 * math.pi))])
 #: The Condon–Shortley signs of Babylon's constants (odd m).
 CS_SIGN: Final = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+#: Sign of each ``P_k`` when x changes sign: relight's frame to Unity's (module docstring, ``unity``).
+UNITY_SIGN: Final = np.array([1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0, -1.0, 1.0])
 #: Clamped-cosine transfer per band, ``A_l`` (Ramamoorthi & Hanrahan 2001, eq. 9).
 A_L: Final = np.array([math.pi, 2 * math.pi / 3, math.pi / 4])
 #: What each convention's numbers are (JSON ``quantity``).
 QUANTITY: Final = {"three": "radiance", "babylon": "radiance", "gltf": "irradiance", "filament": "irradiance/pi",
-                   "raw": "radiance"}
+                   "unity": "irradiance/pi", "raw": "radiance"}
+#: The frame each convention's directions are in (JSON ``frame``).
+FRAME: Final = "relight world (+Y up, three.js equirectUv; GL cube directions of the exports)"
+UNITY_FRAME: Final = "Unity world (left-handed, +Y up, +Z forward): relight's (-x, y, z)"
 
 
 def polynomials(d: NDArray[np.floating]) -> FloatArray:
@@ -89,6 +101,8 @@ def convert(c: FloatArray, convention: str) -> FloatArray:
         return np.asarray(a * CS_SIGN[:, None] * c, dtype=np.float64)
     if convention == "filament":
         return np.asarray(a / math.pi * K[:, None] * c, dtype=np.float64)
+    if convention == "unity":
+        return np.asarray(UNITY_SIGN[:, None] * a / math.pi * K[:, None] * c, dtype=np.float64)
     raise InputError(f"unknown SH convention {convention!r}; use one of {', '.join(CONVENTIONS)}")
 
 
@@ -108,7 +122,7 @@ def sh9(pixels: NDArray[np.floating], convention: str) -> dict[str, Any]:
     coeffs = raw_coefficients(pixels) if convention == "raw" else convert(radiance_coefficients(pixels), convention)
     names = [f"l{l}m{m}" for l in range(3) for m in range(-l, l + 1)] if convention == "raw" else list(NAMES)
     return {"convention": convention, "quantity": QUANTITY[convention], "names": names,
-            "frame": "relight world (+Y up, three.js equirectUv; GL cube directions of the exports)",
+            "frame": UNITY_FRAME if convention == "unity" else FRAME,
             "coefficients": [[float(v) for v in row] for row in coeffs]}
 
 

@@ -97,5 +97,48 @@ def test_cli_writes_exr_and_png(tmp_path: Path) -> None:
     np.testing.assert_allclose(raw[..., :2] / 65535.0, dfg_table(16, multiscatter=True), atol=1.0 / 65535)
     bad = subprocess.run([sys.executable, "-m", "relight.cli", "dfg", "--out", str(tmp_path / "x.bmp")],
                          capture_output=True, text=True, timeout=300)
-    assert bad.returncode == 2 and ".exr or .png" in bad.stderr
+    assert bad.returncode == 2 and ".exr, .png or .ktx2" in bad.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dfg.exr", "dfg.png"]
+
+
+KTX_PARSE = Path(__file__).resolve().parents[2] / "web" / "node_modules" / "ktx-parse" / "dist" / "index.mjs"
+NODE_READ = """
+import { read, write } from %s;
+import { readFileSync } from 'node:fs';
+const bytes = new Uint8Array(readFileSync(process.argv[process.argv.length - 1]));
+const c = read(bytes);
+const again = write(c, { keepWriter: true });
+const half = new Uint16Array(c.levels[0].levelData.buffer.slice(c.levels[0].levelData.byteOffset,
+  c.levels[0].levelData.byteOffset + c.levels[0].levelData.byteLength));
+console.log(JSON.stringify({vkFormat: c.vkFormat, faces: c.faceCount, width: c.pixelWidth, height: c.pixelHeight,
+  levels: c.levelCount, identical: again.length === bytes.length && again.every((v, i) => v === bytes[i]),
+  dfg: JSON.parse(new TextDecoder().decode(c.keyValue['relight.dfg']).replace(/\\0+$/, '')),
+  half: Array.from(half)}));
+"""
+
+
+@pytest.mark.parametrize("multiscatter", [False, True])
+def test_cli_writes_a_2d_ktx2_that_ktx_parse_reads(tmp_path: Path, multiscatter: bool) -> None:
+    """``--out FILE.ktx2``: npm ktx-parse (three's KTX2Loader parser) reads a 2-D RGBA16F texture (faceCount 1,
+    one level, 16 x 16) and re-serialises it byte for byte; its half floats decoded here equal the table to the
+    float16 quantum (values in [0, 1]: 2^-11 relative, at most 4.9e-4)."""
+    out = tmp_path / "dfg.ktx2"
+    cmd = [sys.executable, "-m", "relight.cli", "dfg", "--size", "16", "--out", str(out)]
+    proc = subprocess.run(cmd + (["--multiscatter"] if multiscatter else []), capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    node = shutil.which("node")
+    assert node is not None and KTX_PARSE.is_file(), "node and web/node_modules (npm ci --prefix web) are needed"
+    script = tmp_path / "read.mjs"
+    script.write_text(NODE_READ % repr(KTX_PARSE.as_uri()))
+    res = subprocess.run([node, str(script), str(out)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    import json
+
+    got = json.loads(res.stdout)
+    assert (got["vkFormat"], got["faces"], got["width"], got["height"], got["levels"]) == (97, 1, 16, 16, 1)
+    assert got["identical"]
+    assert got["dfg"]["channels"] == ("(B, A + B)" if multiscatter else "(A, B)")
+    texels = np.asarray(got["half"], dtype=np.uint16).view(np.float16).astype(np.float64).reshape(16, 16, 4)
+    np.testing.assert_allclose(texels[..., :2], dfg_table(16, multiscatter=multiscatter), atol=4.9e-4)
+    np.testing.assert_array_equal(texels[..., 2:], np.broadcast_to([0.0, 1.0], (16, 16, 2)))

@@ -73,6 +73,22 @@ def filament_irradiance(f: np.ndarray, n: np.ndarray) -> np.ndarray:
     return poly @ f
 
 
+def unity_shader(f: np.ndarray, n_unity: np.ndarray) -> np.ndarray:
+    """Unity's ``SHEvalLinearL0L1`` + ``SHEvalLinearL2`` of one channel's ``SphericalHarmonicsL2`` row ``f`` (9)
+    packed as Unity packs it (``unity_SHAr = (f3, f1, f2, f0 - f6)``, ``unity_SHBr = (f4, f5, 3 f6, f7)``,
+    ``unity_SHC.r = f8``), at Unity-frame normals (N, 3)."""
+    sha = np.array([f[3], f[1], f[2], f[0] - f[6]])
+    shb = np.array([f[4], f[5], 3 * f[6], f[7]])
+    n4 = np.concatenate([n_unity, np.ones((n_unity.shape[0], 1))], axis=1)
+    vb = n_unity[:, [0, 1, 2, 2]] * n_unity[:, [1, 2, 2, 0]]  # normal.xyzz * normal.yzzx
+    vc = n_unity[:, 0] ** 2 - n_unity[:, 1] ** 2
+    return np.asarray(n4 @ sha + vb @ shb + f[8] * vc)
+
+
+#: relight's world (right-handed, three.js / glTF) to Unity's (left-handed, +Z forward): x -> -x.
+TO_UNITY = np.array([-1.0, 1.0, 1.0])
+
+
 @pytest.mark.parametrize("axis", list(AXES))
 def test_every_convention_reconstructs_the_clamped_cosine_irradiance(axis: str) -> None:
     a = AXES[axis]
@@ -86,6 +102,10 @@ def test_every_convention_reconstructs_the_clamped_cosine_irradiance(axis: str) 
     # its EXT_lights_image_based loader: irradiance coefficients / pi (convertIrradianceToLambertianRadiance)
     np.testing.assert_allclose(babylon_lambertian(got["gltf"] / math.pi, NORMALS), expect / math.pi, atol=1e-4)
     np.testing.assert_allclose(filament_irradiance(got["filament"], NORMALS), expect / math.pi, atol=1e-4)
+    # Unity: its shader at the same normal in Unity's frame; a light on relight's +X lights Unity's -X side
+    np.testing.assert_allclose(unity_shader(got["unity"], NORMALS * TO_UNITY), expect / math.pi, atol=1e-4)
+    lit = unity_shader(got["unity"], np.asarray([a], dtype=np.float64) * TO_UNITY)[0]
+    assert lit > 2 * unity_shader(got["unity"], -np.asarray([a], dtype=np.float64) * TO_UNITY)[0]
     # raw: relight's real SH; its order-2 radiance at d equals three's sum_k c_k K_k P_k(d) (the same function)
     d = NORMALS
     theta, phi = np.arctan2(np.hypot(d[:, 0], d[:, 2]), d[:, 1]), np.arctan2(d[:, 2], d[:, 0])
@@ -131,6 +151,19 @@ def test_three_js_itself_reads_the_coefficients() -> None:
     got = np.asarray(json.loads(proc.stdout))
     for row, a in zip(got, axes, strict=True):
         np.testing.assert_allclose(row, irradiance_2(NORMALS, a), atol=3e-4)  # 128 rows: ~1e-4 quadrature
+
+
+def test_unity_ambient_is_its_add_ambient_light() -> None:
+    """Unity's ``SphericalHarmonicsL2.AddAmbientLight(c)`` adds ``c`` to ``sh[rgb, 0]`` (its shader then returns
+    ``c`` for every normal): a uniform map of radiance ``c`` has exactly that Unity SH. The pixel sum of a constant
+    is exact to rounding; the odd terms vanish by the grid's symmetry; ``3 y^2 - 1`` and ``x^2 - y^2`` (y up) are
+    midpoint sums over rows, off by O(row height^2): 7.5e-4 at 32 rows for c = 2, so < 2e-5 at 256 rows."""
+    c = np.array([0.7, 1.3, 2.0])
+    px = np.broadcast_to(c, (256, 512, 3)).copy()
+    got = np.asarray(sh9(px, "unity")["coefficients"])
+    np.testing.assert_allclose(got[0], c, rtol=1e-9)
+    np.testing.assert_allclose(got[1:], 0.0, atol=1e-4)
+    assert sh9(px, "unity")["quantity"] == "irradiance/pi" and "Unity" in sh9(px, "unity")["frame"]
 
 
 def test_all_conventions_and_bad_names() -> None:
