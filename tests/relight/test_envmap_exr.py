@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import logging
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -192,3 +193,43 @@ def test_corrupt_chunk_message_says_what_is_wrong() -> None:
         E.read_image(bytes(bad))
     assert "IndexError" not in str(info.value)
     assert "corrupt or truncated EXR pixel data" in str(info.value)
+
+
+def _tiled_exr(rgb: np.ndarray, tile: tuple[int, int]) -> bytes:
+    """A single-part tiled file written by the bindings with 16 x 16 tiles, then its ``tiledesc`` attribute's
+    xSize, ySize (File Layout: two unsigned ints and the mode byte) set to ``tile``. For an image of at most
+    16 x 16 every such tile size gives one tile, so the offset table stays valid."""
+    td = OpenEXR.TileDescription()
+    td.xSize, td.ySize, td.mode = 16, 16, OpenEXR.ONE_LEVEL
+    planes = {c: np.ascontiguousarray(rgb[..., k], dtype=np.float32) for k, c in enumerate("RGB")}
+    buf = io.BytesIO()
+    with OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.tiledimage, "tiles": td},
+                      planes) as f:
+        f.write(buf)
+    data = bytearray(buf.getvalue())
+    at = data.index(b"tiles\0tiledesc\0") + len(b"tiles\0tiledesc\0")
+    assert struct.unpack("<i2I", data[at:at + 12]) == (9, 16, 16)
+    data[at + 4:at + 12] = struct.pack("<2I", *tile)
+    return bytes(data)
+
+
+def test_tile_size_is_bounded_before_decoding() -> None:
+    """Issue 12, item 3: the decoder sizes its buffers by the tile, not the image (measured with OpenEXR 3.5.3:
+    a 16 x 8 image with 16 x 16,000,000 tiles took 3 GB and 25 s from a 2 KB file). A tile edge beyond the image
+    and beyond MAX_TILE_EDGE is refused from the header; within the bound the file decodes to what the bindings
+    read."""
+    from relight.envmap.exr_header import MAX_TILE_EDGE
+
+    rgb = np.random.default_rng(7).random((8, 16, 3)).astype(np.float32)
+    ok = _tiled_exr(rgb, (16, MAX_TILE_EDGE))
+    with OpenEXR.File(io.BytesIO(ok), separate_channels=True) as f:  # the patch is what the bindings see
+        tiles = f.parts[0].header["tiles"]
+        assert (tiles.xSize, tiles.ySize) == (16, MAX_TILE_EDGE)
+        ref = np.stack([f.parts[0].channels[c].pixels for c in "RGB"], axis=-1)
+    np.testing.assert_array_equal(ref, rgb)
+    np.testing.assert_array_equal(E.read_image(ok)[0], rgb)
+    for tile in [(16, MAX_TILE_EDGE + 1), (16, 16_000_000), (1 << 31, 16), (0x7FFFFFFF, 0x7FFFFFFF)]:
+        with pytest.raises(InputError, match=rf"EXR tile size {tile[0]} x {tile[1]} is too large.*16 x 8"):
+            E.probe(_tiled_exr(rgb, tile))
+    with pytest.raises(InputError, match="tile size 0 x 16"):
+        E.probe(_tiled_exr(rgb, (0, 16)))

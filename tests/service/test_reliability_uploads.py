@@ -85,6 +85,23 @@ def deep_behind_scanline_exr() -> bytes:
     return head + _part("a", "scanlineimage", 16, 8) + _part("b", "deepscanline", 16, 8) + b"\0" + bytes(8 * 16 + 64)
 
 
+def tile_bomb_exr(tile_rows: int) -> bytes:
+    """A 16 x 8 tiled image (written by the bindings with 16 x 16 tiles) whose tile description is then set to
+    16 x ``tile_rows``: one tile still covers the image, so the file stays valid; the decoder's memory grows with
+    the tile (3 GB at 16 M rows, measured), far past the workers' 1 GiB here."""
+    td = OpenEXR.TileDescription()
+    td.xSize, td.ySize, td.mode = 16, 16, OpenEXR.ONE_LEVEL
+    z = np.ones((8, 16), np.float32)
+    buf = io.BytesIO()
+    with OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.tiledimage, "tiles": td},
+                      {"R": z, "G": z, "B": z}) as f:
+        f.write(buf)
+    data = bytearray(buf.getvalue())
+    at = data.index(b"tiles\0tiledesc\0") + len(b"tiles\0tiledesc\0") + 4
+    data[at:at + 8] = struct.pack("<2I", 16, tile_rows)
+    return bytes(data)
+
+
 def worst_case_rle(width: int, height: int) -> bytes:
     head = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (height, width)
     row = bytes([2, 2, width >> 8, width & 255]) + bytes([1, 128]) * (4 * width)
@@ -94,7 +111,8 @@ def worst_case_rle(width: int, height: int) -> bytes:
 @pytest.mark.parametrize(("make", "fragments"), [
     (lambda: two_part_exr((8, 16), (2048, 4096)), ("parts", "8388736 pixels", "every part is decoded")),
     (deep_behind_scanline_exr, ("deep", "part 1", "deepscanline")),
-], ids=["big-part-behind-small", "deep-part-behind-scanline"])
+    (lambda: tile_bomb_exr(100_000_000), ("tile size 16 x 100000000 is too large", "16 x 8")),
+], ids=["big-part-behind-small", "deep-part-behind-scanline", "huge-tiles"])
 def test_exr_header_bombs_are_refused_and_nothing_is_stored(uploader: Server, uh: httpx.Client, make: object,
                                                             fragments: tuple[str, ...]) -> None:
     assert callable(make)
