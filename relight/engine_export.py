@@ -78,14 +78,19 @@ def gltf_export(pixels: NDArray[np.floating], source: dict[str, Any], *, size: i
     from relight import __version__
     from relight.cube_chain import prefilter_chain
     from relight.gltf_ibl import gltf_lighting
+    from relight.ktx2 import write_ktx2
     from relight.sh9 import all_conventions
     from relight.sun import apply_sun
 
     sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
     chain = prefilter_chain(sun.pixels, target="gltf", size=size, levels=levels, epsilon=epsilon)
     sh = all_conventions(sun.pixels)
+    ktx2 = write_ktx2([lv.faces for lv in chain.levels],
+                      {"levels": [{k: v for k, v in row.items() if k != "seconds"} for row in chain.summary()],
+                       "target": chain.target, "roughness_mapping": chain.mapping, "sh9": sh, "sun": sun.report},
+                      writer=f"relight {__version__}")
     data, summary = gltf_lighting([lv.faces for lv in chain.levels], sh["gltf"]["coefficients"], sun.report,
-                                  into=into, generator=f"relight {__version__}")
+                                  into=into, ktx2=ktx2, generator=f"relight {__version__}")
     manifest: dict[str, Any] = {
         "format": "gltf", "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
         "lighting_order": chain.lighting_order, "source": source, "size": size, "levels": chain.summary(),

@@ -9,6 +9,14 @@
 * **RGBD** (Babylon's ``toRGBD`` / ``fromRGBD``, its helperFunctions shader): ``D = clamp(floor(max(255 / m, 1)) /
   255, 0, 1)`` with ``m = max(r, g, b, 1e-7)``, stored ``(rgb D)^(1 / 2.2)`` in 8 bits and ``D`` as alpha; decoded
   ``rgb^2.2 / D``. Values above 255 are clamped (counted in the manifest). :func:`rgbd_decode` is the inverse.
+* ``KHR_lights_environment`` (Khronos draft, the version that depends on ``KHR_texture_ktx``) beside it: the
+  same chain as one KTX2 cube file (``relight.ktx2``, RGBA16F, every level, the ``gltf`` target's linear
+  mapping the draft asks for) embedded in the binary buffer and declared in the extension's own ``images``
+  (``mimeType`` ``image/ktx2``, so that loaders without the extension never see it) and ``textures``
+  (``KHR_texture_ktx: {source, layer: 0}``), and one light with the same ``irradianceCoefficients``,
+  ``luminanceFactor`` 1, ``cubemap`` and the required local-cubemap box: :data:`ENV_BOX` metres around the
+  origin, far beyond any model (the map is a distant environment; the box only localises reflections).
+  The scene references it as it references the EXT light.
 * The sun (``--sun extract``, ``relight.sun``) as a ``KHR_lights_punctual`` directional light on a node whose -Z
   axis points along the light's travel, ``-direction``: ``color`` = E / max(E) (RGB irradiance E, components in
   [0, 1] as the extension requires) and ``intensity`` = max(E), so ``intensity x color`` = E.
@@ -41,6 +49,10 @@ CHUNK_JSON = 0x4E4F534A
 CHUNK_BIN = 0x004E4942
 EXT_IBL = "EXT_lights_image_based"
 KHR_PUNCTUAL = "KHR_lights_punctual"
+KHR_ENV = "KHR_lights_environment"
+KHR_KTX = "KHR_texture_ktx"
+#: Half the edge of KHR_lights_environment's local-cubemap box (metres): a distant environment.
+ENV_BOX = 1.0e4
 
 
 def rgbd_encode(rgb: NDArray[np.floating]) -> tuple[NDArray[np.uint8], int]:
@@ -90,10 +102,11 @@ def write_glb(doc: dict[str, Any], bin_data: bytes) -> bytes:
 
 
 def gltf_lighting(levels: Sequence[NDArray[np.floating]], irradiance: Sequence[Sequence[float]],
-                  sun: dict[str, Any] | None, *, into: bytes | None = None,
+                  sun: dict[str, Any] | None, *, into: bytes | None = None, ktx2: bytes | None = None,
                   generator: str = "relight") -> tuple[bytes, dict[str, Any]]:
     """The GLB (module docstring) of a chain (levels of (6, s, s, 3) faces) and its 9 x 3 irradiance
-    coefficients; ``sun`` a ``relight.sun`` extract report or None. Returns (GLB bytes, summary)."""
+    coefficients; ``sun`` a ``relight.sun`` extract report or None; ``ktx2`` the same chain as a KTX2 file for
+    ``KHR_lights_environment`` (left out when None). Returns (GLB bytes, summary)."""
     import imagecodecs
 
     from relight.mesh.gltf import split_glb
@@ -126,6 +139,12 @@ def gltf_lighting(levels: Sequence[NDArray[np.floating]], irradiance: Sequence[S
             bin_parts.append(padded)
             offset += len(padded)
         spec_images.append(row)
+    env_view = None
+    if ktx2 is not None:
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(ktx2)})
+        env_view = len(views) - 1
+        bin_parts.append(_pad(ktx2))
+        offset += len(bin_parts[-1])
     buffers[0]["byteLength"] = offset
     light = {"name": "relight", "intensity": 1.0, "rotation": [0.0, 0.0, 0.0, 1.0],
              "irradianceCoefficients": [[float(c) for c in rgb] for rgb in irradiance],
@@ -140,6 +159,21 @@ def gltf_lighting(levels: Sequence[NDArray[np.floating]], irradiance: Sequence[S
     scene = scenes[int(doc.get("scene", 0))]
     scene.setdefault("extensions", {})[EXT_IBL] = {"light": len(ibl) - 1}
     summary: dict[str, Any] = {"images": len(levels) * 6, "levels": len(levels), "rgbd_clamped": clamped}
+    if env_view is not None:
+        env = exts.setdefault(KHR_ENV, {})
+        env_images, env_textures = env.setdefault("images", []), env.setdefault("textures", [])
+        env_lights = env.setdefault("lights", [])
+        env_images.append({"name": "relight cube chain", "bufferView": env_view, "mimeType": "image/ktx2"})
+        env_textures.append({"extensions": {KHR_KTX: {"source": len(env_images) - 1, "layer": 0}}})
+        env_lights.append({"name": "relight", "luminanceFactor": 1.0,
+                           "irradianceCoefficients": light["irradianceCoefficients"],
+                           "boundingBoxMin": [-ENV_BOX] * 3, "boundingBoxMax": [ENV_BOX] * 3,
+                           "cubemap": len(env_textures) - 1})
+        scene["extensions"][KHR_ENV] = {"light": len(env_lights) - 1}
+        for name in (KHR_ENV, KHR_KTX):
+            if name not in used:
+                used.append(name)
+        summary["ktx2_bytes"] = len(ktx2 or b"")
     if sun is not None and sun.get("mode") == "extract":
         e = np.asarray(sun["irradiance_rgb"], dtype=np.float64)
         peak = float(e.max())

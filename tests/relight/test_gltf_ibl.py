@@ -17,7 +17,8 @@ import pytest
 
 from relight.cube_chain import prefilter_chain
 from relight.envmap import read_envmap
-from relight.gltf_ibl import RGBD_GAMMA, quaternion_z_to, rgbd_decode, rgbd_encode
+from relight.gltf_ibl import ENV_BOX, RGBD_GAMMA, quaternion_z_to, rgbd_decode, rgbd_encode
+from relight.ktx2 import read_ktx2
 from relight.mesh.gltf import read_gltf_bytes, split_glb
 from relight.sun import apply_sun
 
@@ -112,7 +113,23 @@ def test_standalone_export_validates_and_decodes_to_the_chain(tmp_path: Path) ->
     np.testing.assert_allclose(np.array(punctual["color"]) * punctual["intensity"], sun["irradiance_rgb"], rtol=1e-12)
     node = doc["nodes"][manifest["gltf"]["sun_node"]]
     assert node["rotation"] == quaternion_z_to(sun["direction"])
-    assert sorted(doc["extensionsUsed"]) == ["EXT_lights_image_based", "KHR_lights_punctual"]
+    # KHR_lights_environment: the same chain as one embedded KTX2 cube (its images/textures inside the extension,
+    # KHR_texture_ktx), the same SH, referenced by the scene; float16 texels within half precision of the chain
+    env = doc["extensions"]["KHR_lights_environment"]
+    assert doc["scenes"][doc["scene"]]["extensions"]["KHR_lights_environment"] == {"light": 0}
+    env_light = env["lights"][0]
+    assert env_light["irradianceCoefficients"] == manifest["sh9"]["gltf"]["coefficients"]
+    tex = env["textures"][env_light["cubemap"]]["extensions"]["KHR_texture_ktx"]
+    image = env["images"][tex["source"]]
+    assert image["mimeType"] == "image/ktx2" and tex["layer"] == 0
+    assert all(env_light[k] == [s * ENV_BOX] * 3 for k, s in (("boundingBoxMin", -1), ("boundingBoxMax", 1)))
+    view = doc["bufferViews"][image["bufferView"]]
+    cube = read_ktx2(bin_chunk[view["byteOffset"]: view["byteOffset"] + view["byteLength"]])
+    assert cube.size == 16 and len(cube.levels) == 5 and cube.metadata["roughness_mapping"] == "linear"
+    for lv, got in zip(chain.levels, cube.levels, strict=True):
+        np.testing.assert_allclose(got[..., :3], lv.faces, rtol=2.0**-11, atol=6e-8)  # float16: 11-bit mantissa
+    assert sorted(doc["extensionsUsed"]) == ["EXT_lights_image_based", "KHR_lights_environment",
+                                             "KHR_lights_punctual", "KHR_texture_ktx"]
 
 
 def test_into_a_model_keeps_it_and_validates(tmp_path: Path) -> None:
@@ -132,6 +149,7 @@ def test_into_a_model_keeps_it_and_validates(tmp_path: Path) -> None:
     np.testing.assert_array_equal(after.faces, before.faces)
     doc, _ = split_glb(out.read_bytes(), "lit.glb")
     assert len(doc["extensions"]["EXT_lights_image_based"]["lights"][0]["specularImages"]) == 5
+    assert doc["extensions"]["KHR_lights_environment"]["lights"][0]["cubemap"] == 0
 
 
 def test_gltf_needs_the_gltf_target(tmp_path: Path) -> None:
