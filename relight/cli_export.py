@@ -13,8 +13,8 @@
         pixel's luminance to V and records the removed energy fraction; ``keep`` (default) does neither.
         ``--server URL`` computes it on the service (``GET /envmaps/{id}/ibl``): the same KTX2 bytes.
         ``--format gltf [--into MODEL.glb]`` (``--target gltf``): a GLB with the chain as EXT_lights_image_based
-        (RGBD PNG faces, SH9 irradiance)
-        and KHR_lights_environment (the chain as one KTX2 via KHR_texture_ktx, SH9), and an extracted sun as a KHR_lights_punctual light (``relight.gltf_ibl``).
+        (RGBD PNG faces, SH9 irradiance) and KHR_lights_environment (the chain as one KTX2 via KHR_texture_ktx,
+        SH9), and an extracted sun as a KHR_lights_punctual light (``relight.gltf_ibl``).
 
     relight dfg [--size 128] [--multiscatter] --out FILE.exr|FILE.png|FILE.ktx2
         the split-sum DFG table (``relight.dfg``; docs/conventions.md "DFG"): R, G = (A, B) or, multiscatter,
