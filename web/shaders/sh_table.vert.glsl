@@ -10,6 +10,8 @@
 //   MODE_TRANSFER     PRT (§5): per vertex the folded transfer matrix T'_p = S M(R_p) T_p (relight/sh_prt.py) in
 //                     u_vertex_data, row i in SHR_ROW_TEXELS RGBA texels (row-major, rows padded with zeros),
 //                     vertex p from texel p * SHR_COUNT * SHR_ROW_TEXELS: L_p = T'_p u_light, then steps 3-4.
+//                     With TRANSFER_WORLD the matrices are the world-frame T_p (unfolded: relight.visibility's
+//                     shadow_matrix) and L_p = S M(R_p) (T_p u_light) is rotated here, as MODE_GENERAL does.
 // Targets (at most one define):
 //   (none)            the mesh through u_view_projection, v_color = Q;
 //   PROBE             one point per vertex at texel gl_VertexID (row-major) of a u_output_size float target (tests);
@@ -128,6 +130,9 @@ void main() {
         }
         shr_c[i] = acc;
     }
+#    ifdef TRANSFER_WORLD
+    sh_rotate_frame(t, b, n, false);
+#    endif
 #  endif
 #  ifdef PRECOMPUTE
 #    ifdef MODE_FIXED_VIEW

@@ -9,6 +9,7 @@ import { exampleScene, parseScene, sceneItems, showScene } from './scene.js';
 import { initGaussianPanel } from './gaussian_panel.js';
 import { initShadows } from './shadows.js';
 import { initShTables } from './sh_table_panel.js';
+import { initBrushed } from './brushed_panel.js';
 import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
 
@@ -584,6 +585,7 @@ async function main() {
   initGaussianPanel(state, $, showError);
   await initInOut(state, $, showError);
   initShTables(state, $, showError);
+  initBrushed(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
     await loadResult(fromUrl).catch((err) => showError('plan-error', err));

@@ -21,8 +21,11 @@ const MODE_DEFINE = {
 export const DATA_WIDTH = 2048;
 export const SHADER_FILES = ['sh_table.vert.glsl', 'sh_table.frag.glsl'];
 
-/** The defines of sh_table.vert.glsl, as relight.gl.sh_table.shader_defines. */
-export function shaderDefines(order, layout, mode, target = null, tables = 1) {
+/**
+ * The defines of sh_table.vert.glsl, as relight.gl.sh_table.shader_defines; `transferWorld`: the 'transfer' mode's
+ * matrices are world-frame T_p (relight.visibility's shadow_matrix), rotated into the local frame on the GPU.
+ */
+export function shaderDefines(order, layout, mode, target = null, tables = 1, transferWorld = false) {
   if (!(mode in MODE_DEFINE)) {
     throw new Error(`unknown SH-table mode ${mode}`);
   }
@@ -33,6 +36,9 @@ export function shaderDefines(order, layout, mode, target = null, tables = 1) {
   defines[layout === 'parabolic' ? 'TABLE_PARABOLIC' : 'TABLE_HEMI_OCTAHEDRAL'] = null;
   defines[MODE_DEFINE[mode]] = null;
   defines.OUTPUT_LINEAR = null;
+  if (transferWorld && mode === 'transfer') {
+    defines.TRANSFER_WORLD = null;
+  }
   if (target) {
     defines[target] = null;
   }
@@ -86,18 +92,23 @@ export class SHTableGL {
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
     this.programs = new Map();
-    this.data = null;
+    this.data = null;  // the fixed modes' per-vertex data (prepare)
+    this.transfer = null;  // the transfer mode's matrices (setTransfer): kept apart, so that neither evicts the other
+    this.transferWorld = false;
   }
 
+  /** `target`: null (the mesh, linear radiance), 'PROBE', 'PRECOMPUTE' or 'DISPLAY' (the mesh, tone-mapped). */
   program(mode, target = null) {
-    const key = `${mode}/${target}`;
+    const key = `${mode}/${target}/${mode === 'transfer' && this.transferWorld}`;
     if (!this.programs.has(key)) {
       const gl = this.gl;
-      const defines = shaderDefines(this.order, this.layout, mode, target, this.tables);
+      const display = target === 'DISPLAY';
+      const defines = shaderDefines(this.order, this.layout, mode, display ? null : target, this.tables,
+        this.transferWorld);
       const prog = gl.createProgram();
       gl.attachShader(prog, compile(gl, gl.VERTEX_SHADER, build('sh_table.vert.glsl', { defines, read: this.read })));
       gl.attachShader(prog, compile(gl, gl.FRAGMENT_SHADER,
-        build('sh_table.frag.glsl', { defines: { OUTPUT_LINEAR: null }, read: this.read })));
+        build('sh_table.frag.glsl', { defines: display ? {} : { OUTPUT_LINEAR: null }, read: this.read })));
       gl.linkProgram(prog);
       if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) {
         throw new Error(`shader link: ${gl.getProgramInfoLog(prog)}`);
@@ -147,7 +158,7 @@ export class SHTableGL {
     this.positions = positions;
   }
 
-  setUniforms(prog, view, light) {
+  setUniforms(prog, view, light, mode = null) {
     const gl = this.gl;
     gl.useProgram(prog);
     const norm = Math.hypot(...view);
@@ -160,7 +171,7 @@ export class SHTableGL {
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.table);
     gl.uniform1i(gl.getUniformLocation(prog, 'u_table'), 0);
     gl.activeTexture(gl.TEXTURE1);
-    gl.bindTexture(gl.TEXTURE_2D, this.data);
+    gl.bindTexture(gl.TEXTURE_2D, mode === 'transfer' ? this.transfer : this.data);
     gl.uniform1i(gl.getUniformLocation(prog, 'u_vertex_data'), 1);
   }
 
@@ -203,12 +214,15 @@ export class SHTableGL {
 
   /**
    * Folded transfer matrices for 'transfer' (relight.gl.sh_table.TableRenderer.set_transfer): float16 bits of
-   * (count, n, 4 ceil(n / 4)), each row zero-padded, vertex-major.
+   * (count, n, 4 ceil(n / 4)), each row zero-padded, vertex-major. With `world`, the matrices are world-frame
+   * T_p (unfolded) and the shader rotates T_p L' into each vertex's frame (TRANSFER_WORLD).
    * @param {Uint16Array} half
    * @param {number} count vertices
+   * @param {{world?: boolean}} options
    */
-  setTransfer(half, count) {
+  setTransfer(half, count, { world = false } = {}) {
     const gl = this.gl;
+    this.transferWorld = world;
     const row = 4 * Math.ceil(this.n / 4);
     if (half.length !== count * this.n * row) {
       throw new Error(`transfer data holds ${half.length} values, expected ${count * this.n * row}`);
@@ -217,15 +231,51 @@ export class SHTableGL {
     const rows = Math.max(1, Math.ceil(texels / DATA_WIDTH));
     const data = new Uint16Array(rows * DATA_WIDTH * 4);
     data.set(half);
-    if (this.data) {
-      gl.deleteTexture(this.data);
+    if (this.transfer) {
+      gl.deleteTexture(this.transfer);
     }
-    this.data = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, this.data);
+    this.transfer = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, this.transfer);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA16F, DATA_WIDTH, rows, 0, gl.RGBA, gl.HALF_FLOAT, data);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+  }
+
+  /**
+   * Draw an indexed mesh into the bound framebuffer with the display transform (target DISPLAY): `mesh` holds
+   * `vertices` (interleaved float32 position, normal, tangent as vertexArray) and `indices` (Uint32Array); its
+   * vertex arrays are kept on it per program (releaseMesh frees them).
+   * @param {Float32Array} viewProjection column-major 4 x 4
+   */
+  draw(mode, mesh, viewProjection, view, light, { exposure = 0, tonemap = 0 } = {}) {
+    const gl = this.gl;
+    const prog = this.program(mode, 'DISPLAY');
+    this.setUniforms(prog, view, light, mode);
+    gl.uniformMatrix4fv(gl.getUniformLocation(prog, 'u_view_projection'), false, viewProjection);
+    gl.uniform1f(gl.getUniformLocation(prog, 'u_exposure'), exposure);
+    gl.uniform1i(gl.getUniformLocation(prog, 'u_tonemap'), tonemap);
+    mesh.vaos = mesh.vaos || new Map();
+    if (!mesh.vaos.has(prog)) {
+      const arrays = this.vertexArray(prog, mesh.vertices);  // leaves its vertex array bound
+      const ibuf = gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ibuf);
+      gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, mesh.indices, gl.STATIC_DRAW);
+      mesh.vaos.set(prog, { ...arrays, ibuf });
+    }
+    gl.bindVertexArray(mesh.vaos.get(prog).vao);
+    gl.drawElements(gl.TRIANGLES, mesh.indices.length, gl.UNSIGNED_INT, 0);
+    gl.bindVertexArray(null);
+  }
+
+  /** Free the vertex arrays draw() kept on `mesh`. */
+  releaseMesh(mesh) {
+    const gl = this.gl;
+    for (const { vao, buf, posBuf, ibuf } of (mesh.vaos || new Map()).values()) {
+      gl.deleteVertexArray(vao);
+      [buf, posBuf, ibuf].forEach((b) => b && gl.deleteBuffer(b));
+    }
+    mesh.vaos = new Map();
   }
 
   /** The fixed modes' per-vertex data (nothing for 'general'; 'transfer' reads what setTransfer uploaded). */
@@ -255,7 +305,7 @@ export class SHTableGL {
     }
     this.prepare(mode, vertices, count, view, light);
     const prog = this.program(mode, 'PROBE');
-    this.setUniforms(prog, view, light);
+    this.setUniforms(prog, view, light, mode);
     const [, raw] = this.points(prog, vertices, count, 1);
     const out = new Float32Array(count * 3);
     for (let k = 0; k < count; k += 1) {
