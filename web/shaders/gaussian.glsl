@@ -45,17 +45,18 @@ void gaussian_interval(float theta, out int j, out float f) {
 #endif
 }
 
-// c = cos(mu) r + sin(mu) e, e = normalize(n - (n.r) r): r rotated by mu toward n in the plane of incidence; any
-// perpendicular where r = n (mu = 0 there) (relight.brdf.gaussian_lobes.lobe_centres).
-vec3 gaussian_centre(vec3 n, vec3 r, float mu) {
+// e = normalize(n - (n.r) r): the unit vector along n's component perpendicular to r, toward n in the plane of
+// incidence; any perpendicular where r = n (mu = 0 there). It is the same for every lobe, so it is computed once
+// per pixel; lobe k's centre is then c_k = cos(mu_k) r + sin(mu_k) e, r rotated by mu_k toward n
+// (relight.brdf.gaussian_lobes.lobe_centres).
+vec3 gaussian_axis(vec3 n, vec3 r) {
     vec3 e = n - dot(n, r) * r;
     float len = length(e);
-    if (len > 1e-6) {
-        e /= len;
-    } else {
-        e = normalize(cross(r, abs(r.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
-    }
-    return cos(mu) * r + sin(mu) * e;
+    return len > 1e-6 ? e / len : normalize(cross(r, abs(r.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
+}
+
+vec3 gaussian_centre(vec3 n, vec3 r, float mu) {
+    return cos(mu) * r + sin(mu) * gaussian_axis(n, r);
 }
 
 // (G_sigma * L)(d) from the chain.
@@ -66,7 +67,8 @@ vec3 gaussian_chain_lookup(vec3 d, float sigma) {
 #endif
     float j0 = floor(x);
     float f = x - j0;
-    vec2 uv = latlong_uv(d);
+    // d is a unit lobe centre (cos(mu) r + sin(mu) e, r and e orthonormal): latlong_uv without its normalize
+    vec2 uv = vec2(atan(d.z, d.x) / (2.0 * PI) + 0.5, acos(clamp(d.y, -1.0, 1.0)) / PI);
     vec3 a = texture(u_chain, vec3(uv, j0)).rgb;
     if (f > 0.0) {
         a = mix(a, texture(u_chain, vec3(uv, min(j0 + 1.0, float(GAUSSIAN_LEVELS - 1)))).rgb, f);
@@ -150,6 +152,7 @@ vec3 gaussian_shade(vec3 n, vec3 v) {
     float f;
     gaussian_interval(acos(ndv), j, f);
     int j1 = min(j + 1, GAUSSIAN_N - 1);
+    vec3 e = gaussian_axis(n, r);
     vec3 sum = vec3(0.0);
     for (int k = 0; k < GAUSSIAN_K; ++k) {
         vec3 w = mix(texelFetch(u_lobe_weight, ivec2(k, j), 0).rgb, texelFetch(u_lobe_weight, ivec2(k, j1), 0).rgb, f);
@@ -157,7 +160,7 @@ vec3 gaussian_shade(vec3 n, vec3 v) {
             continue;
         }
         vec2 shape = mix(texelFetch(u_lobe_shape, ivec2(k, j), 0).rg, texelFetch(u_lobe_shape, ivec2(k, j1), 0).rg, f);
-        vec3 c = gaussian_centre(n, r, shape.x);
+        vec3 c = cos(shape.x) * r + sin(shape.x) * e;
         vec3 term = w * gaussian_chain_lookup(c, shape.y);
 #ifdef GAUSSIAN_VISIBILITY
         term *= gaussian_visibility(c, shape.y, vis);
