@@ -8,6 +8,11 @@ compression leaves some) are clamped to 0 and counted.
 
 Every decoder returns linear float32 RGB, shape (H, W, 3), row 0 at the top of the image. The size is checked
 against ``max_pixels`` from the header (:mod:`relight.envmap.headers`) before any pixel is decoded.
+
+A lat-long EXR *file* above :data:`STREAM_ABOVE_PIXELS` (Poly Haven's 8k and 16k) is not decoded whole: it is
+streamed in scanline chunks into its area-exact downsample to :data:`STREAM_ROWS` rows
+(:mod:`relight.envmap.stream`, memory independent of the file's height), orders up to ``STREAM_ROWS - 1``, more
+than any chain, reflection map or SHRM of the project asks for. ``max_rows`` asks for a smaller map.
 """
 
 from __future__ import annotations
@@ -35,6 +40,10 @@ from relight.errors import InputError
 
 F32 = NDArray[np.float32]
 
+#: Lat-long EXR files with more pixels than this are streamed and downsampled (module docstring): 4096 x 2048.
+STREAM_ABOVE_PIXELS: Final = 4096 * 2048
+#: Rows of the downsample of a streamed map.
+STREAM_ROWS: Final = 2048
 #: Layouts :func:`read_envmap` accepts.
 LAYOUTS: Final = ("auto", "latlong", *CUBE_LAYOUTS)
 
@@ -143,14 +152,17 @@ def _cube_envmap(cube: NDArray[np.float32], height: int, source_format: str, lay
     return EnvMap(cube_to_latlong(np.stack(checked), height), source_format, count, mn, layout)
 
 
-def read_envmap(src: Source, *, max_pixels: int | None = None, layout: str = "auto") -> EnvMap:
+def read_envmap(src: Source, *, max_pixels: int | None = None, layout: str = "auto",
+                max_rows: int | None = None) -> EnvMap:
     """Read and validate an environment map from a file path or its bytes.
 
     ``layout``: ``"latlong"`` (W = 2H), a cube-map layout (see :func:`cube_faces_from_image`: ``"strip-h"`` 6:1,
     ``"strip-v"`` 1:6, ``"cross-h"`` 4:3, ``"cross-v"`` 3:4), or ``"auto"`` to choose from the aspect ratio.
     Cube maps are resampled to a lat-long map of height 2 x face size (:func:`cube_to_latlong`).
     ``max_pixels`` limits the file's pixel count; it is checked from the header before decoding (and
-    :data:`relight.envmap.formats.HARD_MAX_PIXELS` always applies).
+    :data:`relight.envmap.formats.HARD_MAX_PIXELS` always applies). A lat-long EXR file above
+    :data:`STREAM_ABOVE_PIXELS`, or taller than ``max_rows``, is streamed into its area-exact downsample to
+    ``min(max_rows, STREAM_ROWS)`` rows (module docstring).
     """
     if layout not in LAYOUTS:
         raise InputError(f"unknown layout {layout!r}: expected one of {', '.join(LAYOUTS)}")
@@ -164,6 +176,14 @@ def read_envmap(src: Source, *, max_pixels: int | None = None, layout: str = "au
                              "height, or a cube map (6:1 or 1:6 strip, 4:3 or 3:4 cross)")
     elif layout == "latlong" and w != 2 * h:
         raise InputError(f"image is {w} x {h}: a lat-long map must have width = 2 x height")
+    if max_rows is not None and max_rows < 1:
+        raise InputError(f"max_rows must be positive, got {max_rows}")
+    big = hdr.pixels > STREAM_ABOVE_PIXELS or (max_rows is not None and h > max_rows)
+    if big and layout == "latlong" and hdr.format == "exr" and not isinstance(src, (bytes, bytearray, memoryview)):
+        from relight.envmap.stream import stream_latlong
+
+        s = stream_latlong(src, min(h, STREAM_ROWS, max_rows or STREAM_ROWS))
+        return EnvMap(s.pixels, "exr", s.negatives_clamped, s.min_negative)
     rgb, fmt = _decode(src, hdr), hdr.format
     if layout == "latlong":
         pixels, count, mn = _validate(rgb)
