@@ -35,6 +35,8 @@ class SceneRun:
     shrms: dict[str, Any] = field(default_factory=dict)  # relight.shrm.SHRM
     #: per shadowed object, its ``relight.visibility.TransferResult`` (relight.planning.shadows)
     transfers: dict[str, Any] = field(default_factory=dict)
+    #: per planner-v2 job id, the core object it computed (``relight.planning.run_jobs``)
+    jobs: dict[str, Any] = field(default_factory=dict)
 
 
 def compute_component(plan: Plan, comp: Computation) -> Any:
@@ -134,7 +136,7 @@ def run_plan(
     transfers: dict[str, Any] = {}
     transfers_done: dict[tuple[str, int, int, int, float], Any] = {}
     for o in rep.objects:
-        if not o.computations:  # every lobe drawn by a planner-v2 representation (relight.planning.run_jobs)
+        if not o.computations:  # every lobe drawn by a planner-v2 representation (run_jobs below)
             objects.append(ObjectResult(name=o.name, viewer=o.viewer, shrm=o.shrm, output_rows=o.output_rows))
             continue
         shrm = SHRM(components=[comps[i] for i in o.computations], brdf=None, report={
@@ -188,8 +190,13 @@ def run_plan(
             maps[o.name] = image
             shrms[o.name] = shrm
         objects.append(entry)
+    from relight.planning.run_jobs import run_jobs
+
+    job_runs, job_objects = run_jobs(plan, out if write else None)
+    for run in job_runs:
+        stages[f"job:{run.kind}"] = stages.get(f"job:{run.kind}", 0.0) + float(run.measured_seconds or 0.0)
     result = SceneResult(
-        relight_version=__version__, scene=rep.scene, epsilon=rep.epsilon, objects=objects,
+        relight_version=__version__, scene=rep.scene, epsilon=rep.epsilon, objects=objects, jobs=job_runs,
         computed=[c.id for c in rep.computations], lighting_projections=1,
         measured_seconds=float(sum(v for k, v in stages.items() if k != "writing")), measured_stages=stages,
         predicted_seconds=rep.predicted_seconds, predicted_stages=rep.predicted_stages,
@@ -197,4 +204,4 @@ def run_plan(
     if write and out is not None:
         (out / "plan.json").write_text(plan_json(plan))
         (out / "result.json").write_text(json.dumps(jsonable(result.to_json()), indent=1, allow_nan=False))
-    return SceneRun(result, maps, shrms, transfers)
+    return SceneRun(result, maps, shrms, transfers, {} if write else job_objects)

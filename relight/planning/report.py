@@ -267,6 +267,21 @@ class ObjectResult(Report):
 
 
 @dataclass(frozen=True, kw_only=True)
+class JobRun(Report):
+    """One planner-v2 job as run (``relight.planning.run_jobs``): its files (names inside the run's folder), a
+    summary of what it computed, measured seconds next to the predicted ones; ``executed = False``: listed only."""
+
+    id: str
+    kind: str
+    shared_by: list[str]
+    executed: bool
+    files: list[str] = field(default_factory=list)
+    summary: dict[str, Any] = field(default_factory=dict)
+    measured_seconds: float | None = field(default=None, metadata=OMIT_NONE)
+    predicted_seconds: float
+
+
+@dataclass(frozen=True, kw_only=True)
 class SceneResult(Report):
     """What running a plan did (:func:`relight.planning.run_plan`; ``result.json``, the API's
     ``ScenePublic.result``): the objects, the computations run (each once), and measured seconds per stage next to
@@ -283,3 +298,5 @@ class SceneResult(Report):
     measured_stages: dict[str, float]
     predicted_seconds: float
     predicted_stages: dict[str, float]
+    #: planner v2's jobs (Gaussian fits and chains, SH tables, visibility, transfer matrices, in-out transport)
+    jobs: list[JobRun] = field(default_factory=list)

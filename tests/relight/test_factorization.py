@@ -164,7 +164,8 @@ def test_closed_form_kernels() -> None:
 def test_resolution_convergence_check() -> None:
     ok = convergence(parse_brdf("phong:s=10"), n_theta=24)
     assert ok["converged"] and ok["resolutions"] == [[24, 24], [36, 36]]
-    # eq. 14 at sigma = 0.2 is far from converged at the paper's 40^4 (64 terms) vs 60^4 (85): the check says so
+    # eq. 14 at sigma = 0.2 is not converged at the paper's 40^4 (64 terms; 60 x 60 nodes: 79; converged 73 at
+    # 200 x 256 and 300 x 384, README): the check says so
     bad = convergence(parse_brdf("microfacet:sigma=0.2"), n_theta=40)
     assert not bad["converged"]
     assert bad["terms"][0]["0.99"] == 64
