@@ -34,7 +34,7 @@ from relight.sh_prt import folded_transfer, shade_prt
 from relight.sh_render import cap_light, rotate_lighting, shade, window_lighting
 from relight.sh_rotation import local_rotations, rotate_coefficients
 from relight.sh_table import SHTable, build_table
-from relight.tangent_frames import projected_frames
+from relight.tangent_frames import azimuthal_frames, projected_frames
 from relight.view_maps import view_to_texel
 from tests.service.conftest import Server
 from tests.web.conftest import screenshot
@@ -192,3 +192,63 @@ def test_brushed_bunny_all_modes_and_shadows_match_cpu(page: Any, viewer_server:
     page.click("#brushed-load")
     page.wait_for_function("window.relight.brushed.transferJob === null && window.relight.brushed.mode === "
                            "'general'", timeout=120_000)
+
+
+def test_order_window_grid_draws_the_cpu_result(page: Any, viewer_server: Server, tmp_path: Path) -> None:
+    """Fig. 6's grid (web/src/sh_order_grid.js): two materials x (F = 2, 4, 6, 8, 8 with Hann); every cell's
+    per-vertex radiance through the shader that drew it equals ``shade`` on the first (F+1)^2 layers of the job's
+    float16 F = 8 table with the lighting truncated to F (and windowed in the last column); tolerance as above."""
+    envmap_id = upload_map(page, tmp_path)
+    materials = ["ashikhmin-shirley:nu=12,nv=4,rs=0.05,rd=0", "ashikhmin-shirley:nu=48,nv=16,rs=0.05,rd=0"]
+    page.fill("#order-grid-materials", "\n".join(materials))
+    page.fill("#order-grid-resolution", "12")
+    page.click("#order-grid-run")
+    page.wait_for_function("window.relight.orderGrid.ready === true || "
+                           "document.getElementById('order-grid-error').textContent !== ''", timeout=300_000)
+    assert page.evaluate("document.getElementById('order-grid-error').textContent") == ""
+    got = page.evaluate("""() => {
+      const g = window.relight.orderGrid;
+      return { lighting: Array.from(g.lighting), costs: g.costs, normals: Array.from(g.sphere.normals),
+        tangents: Array.from(g.sphere.tangents), view: g.view, canvases: document.querySelectorAll(
+          '#order-grid canvas').length, text: document.getElementById('order-grid').textContent,
+        cells: g.cells.map((c, k) => ({ order: c.order, window: c.window, job: c.job, row: c.row,
+          probe: Array.from(g.probe(k)) })) };
+    }""")
+    screenshot(page, "order_window_grid")
+    assert got["canvases"] == 5 + 2 * 5 and len(got["cells"]) == 10
+    with httpx.Client(base_url=viewer_server.url, timeout=60) as http:
+        env = http.get(f"/envmaps/{envmap_id}/texture.bin?rows=256")
+        shape = [int(x) for x in env.headers["X-Texture-Shape"].split(",")]
+        px16 = np.frombuffer(env.content, dtype="<f2").astype(np.float64).reshape(shape)
+        tables = {c["job"]: np.frombuffer(http.get(f"/jobs/{c['job']}/files/table.bin").content, "<f2")
+                  for c in got["cells"]}
+    full = np.asarray(sh.to_real(sh.project(px16, 8, weights="area"), 8).T)
+    assert np.abs(np.asarray(got["lighting"]).reshape(-1, 3) - full).max() <= 1e-9 * np.abs(full).max()
+    hann_cost = window_lighting(full, "hann")[1]
+    assert abs(got["costs"][4] - hann_cost) <= 1e-9 and got["costs"][:4] == [0, 0, 0, 0]
+    assert f"cost {100 * hann_cost:.3g} %" in got["text"]
+
+    normals = np.asarray(got["normals"]).reshape(-1, 3)
+    frames = azimuthal_frames(normals)
+    assert np.abs(np.asarray(got["tangents"]).reshape(-1, 4)[:, :3] - frames[:, 0]).max() < 1e-6
+    view = np.asarray(got["view"], dtype=np.float64)
+    vl = np.einsum("nij,j->ni", frames, view)
+    res = 12
+    maps = build_table(parse_frame_brdf(materials[0]), order=2, resolution=res)  # the map's views and valid
+    renders = {}
+    for cell in got["cells"]:
+        order, n = cell["order"], (cell["order"] + 1) ** 2
+        c8 = tables[cell["job"]].astype(np.float64).reshape(81, res, res, 1).transpose(1, 2, 0, 3)
+        same = SHTable(c8[:, :, :n], maps.views, maps.valid, order, "parabolic", {})
+        light, _ = window_lighting(full[:n], cell["window"])
+        local = rotate_coefficients(local_rotations(frames, order), light[None])
+        cpu = shade(same, light, frames, view, exact_azimuth=False)
+        gpu = np.asarray(cell["probe"]).reshape(-1, 3)
+        tol = tolerance(same, local, vl)
+        assert np.all(np.abs(gpu - cpu) <= tol), (cell["row"], order, float(np.abs(gpu - cpu).max()))
+        renders[(cell["row"], order, cell["window"])] = cpu
+    # the columns are different truncations (the windowed one too), not one image five times
+    for r in (0, 1):
+        top = renders[(r, 8, "none")]
+        for other in (renders[(r, 2, "none")], renders[(r, 8, "hann")]):
+            assert np.abs(top - other).max() > 0.05 * np.abs(top).max()

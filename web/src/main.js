@@ -10,6 +10,7 @@ import { initGaussianPanel } from './gaussian_panel.js';
 import { initShadows } from './shadows.js';
 import { initShTables } from './sh_table_panel.js';
 import { initBrushed } from './brushed_panel.js';
+import { initOrderGrid } from './sh_order_grid.js';
 import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
 
@@ -586,6 +587,7 @@ async function main() {
   await initInOut(state, $, showError);
   initShTables(state, $, showError);
   initBrushed(state, $, showError);
+  initOrderGrid(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
     await loadResult(fromUrl).catch((err) => showError('plan-error', err));
