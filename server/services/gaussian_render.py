@@ -30,10 +30,11 @@ MODES: Final = ("none", "ao", "sh", "sh-lobe")
 
 
 async def _result(services: Services, job_id: str, kind: str) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(request, result) of a succeeded job of ``kind``."""
+    """(request, result) of a succeeded job of ``kind`` whose files are intact (503 and recomputed otherwise)."""
     row = await services.jobs.row(job_id, kind)
     if row.state != JobState.succeeded or row.result is None:
         raise Conflict(f"{kind} job {job_id} is {row.state}; it has no result yet", state=row.state)
+    await services.jobs.require_files(row)
     return dict(row.request or {}), dict(row.result)
 
 
@@ -57,6 +58,7 @@ async def gaussian_render(services: Services, fit: str, chain: str, visibility: 
         _, manifest = await services.visibility.manifest(visibility)
         geometry = vis_request["geometry"]
         npz = str(manifest["files"]["visibility.npz"]["sha256"])
+        await services.jobs.verified_file(visibility, npz)
     fut = services.cluster.submit(tasks.gaussian_image, str(services.store.root), material, chain_result, view, size,
                                   geometry=geometry, visibility_npz=npz, mode=mode,
                                   key=f"relight-gaussian-render-{content_id(list(key))}")

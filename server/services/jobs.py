@@ -15,6 +15,10 @@ and resumed here, on one table and under one active-job cap.
 * **Cancellation.** ``DELETE`` marks the row ``cancelled`` and cancels the Dask future; the task stops at its next
   progress report, and a result that arrives anyway is not stored (only active rows take results).
 * **Recovery.** At start-up jobs of every kind left ``queued`` or ``running`` are submitted again (at-least-once).
+* **Integrity.** A succeeded job is only reused when every file its result lists under ``files`` is present and
+  intact (:meth:`JobService.files_intact`, plus a kind's own ``intact`` check); otherwise resubmitting computes it
+  again. A file found missing or corrupt when it is served queues the job again and answers 503 with
+  ``Retry-After`` (:meth:`JobService.recompute`): a lost result is never served and never "succeeded" for good.
 
 Job-table writes go through a single writer thread, so they apply in the order they were issued
 (:class:`relight.server.services.job_table.JobTable`, which holds every query of the table).
@@ -25,13 +29,15 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import AsyncIterator, Awaitable, Callable
-from typing import Any
+from pathlib import Path
+from typing import Any, NoReturn
 
 from relight.contract.models import JobList, JobPublic, JobState
 from relight.server.cluster import Cluster
 from relight.server.config import Settings
 from relight.server.db import Database, Job
-from relight.server.problems import Conflict
+from relight.server.problems import Conflict, Unavailable
+from relight.server.services.base import in_thread
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.events import EventHub
 from relight.server.services.job_feed import JobFeed
@@ -40,7 +46,7 @@ from relight.server.services.kinds import JobKind, kind_of
 from relight.server.services.metrics import Metrics
 from relight.server.services.runner import failure_of, run_with_resubmits
 from relight.worker import faults
-from relight.worker.blobs import BlobStore
+from relight.worker.blobs import BlobCorrupt, BlobMissing, BlobStore
 from relight.worker.progress import run_job
 
 log = logging.getLogger("relight.server")
@@ -107,7 +113,7 @@ class JobService(JobTable):
         else:
             row = found
         if row.state == JobState.succeeded:
-            if intact is None or await intact(row):
+            if await self.files_intact(row) and (intact is None or await intact(row)):
                 self.metrics.inc("cache_hits_total")
                 return row, 200
             await self.requeue(job_id, "recomputing: the stored result is missing or corrupt",
@@ -129,6 +135,46 @@ class JobService(JobTable):
             await self.feed.republish(job_id)
         self._ensure(job_id)
         return queued
+
+    # ------------------------------------------------------------------------------------------------ integrity
+    def _verify_files(self, row: Job) -> None:
+        for info in ((row.result or {}).get("files") or {}).values():
+            if isinstance(info, dict) and "sha256" in info:
+                self.store.verified_path(str(info["sha256"]))
+
+    async def files_intact(self, row: Job) -> bool:
+        """Whether every file the job's result lists under ``files`` is present and hashes to its name (a corrupt
+        one is removed by the check)."""
+        try:
+            await in_thread(self._verify_files, row)
+        except (BlobMissing, BlobCorrupt, ValueError):
+            return False
+        return True
+
+    async def require_files(self, row: Job) -> None:
+        """Return when every file of the succeeded job ``row`` is intact; else queue it again and answer 503."""
+        try:
+            await in_thread(self._verify_files, row)
+        except (BlobMissing, BlobCorrupt, ValueError) as exc:
+            await self.recompute(row.id, exc)
+
+    async def verified_file(self, job_id: str, digest: str) -> Path:
+        """The verified path of the blob ``digest`` of job ``job_id``'s result; 503 and the job queued again when it
+        is missing or corrupt."""
+        try:
+            return await in_thread(self.store.verified_path, digest)
+        except (BlobMissing, BlobCorrupt) as exc:
+            await self.recompute(job_id, exc)
+
+    async def recompute(self, job_id: str, exc: BaseException) -> NoReturn:
+        """A stored result of ``job_id`` was found missing or corrupt: queue the job again (outside the cap: the
+        result existed) and answer 503 with ``Retry-After``."""
+        log.warning("result of job %s unusable (%s): recomputing", job_id, exc)
+        self.metrics.inc("results_recomputed_total")
+        await self.requeue(job_id, "recomputing: the stored result was missing or corrupt",
+                           from_states=(JobState.succeeded.value,), capped=False)
+        raise Unavailable(f"the stored result of job {job_id} was missing or corrupt; it is being recomputed",
+                          headers={"Retry-After": "2"}, job=f"/jobs/{job_id}")
 
     def _ensure(self, job_id: str) -> None:
         """Start the job's watcher unless one runs (runs on the event loop only: no two watchers per job)."""

@@ -23,7 +23,7 @@ from relight.contract.models import JobPublic, JobState, Measurement, Orders, Pr
 from relight.errors import InputError
 from relight.server.cluster import Cluster
 from relight.server.db import Job, Render, utcnow
-from relight.server.problems import Conflict, Unavailable, Unprocessable
+from relight.server.problems import Conflict, Unprocessable
 from relight.server.services.base import aware, content_id, in_thread
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.jobs import JobService
@@ -149,13 +149,8 @@ class ShrmService:
         return row.result_sha256, manifest
 
     async def _recompute(self, job_id: str, exc: BaseException) -> None:
-        log.warning("result of job %s unusable (%s): recomputing", job_id, exc)
         self._manifests.pop(job_id, None)
-        self.jobs.metrics.inc("results_recomputed_total")
-        await self.jobs.requeue(job_id, "recomputing: the stored result was missing or corrupt",
-                                from_states=(JobState.succeeded.value,), capped=False)
-        raise Unavailable(f"the stored result of job {job_id} was missing or corrupt ({exc}); it is being "
-                          "recomputed", headers={"Retry-After": "2"}, job=f"/jobs/{job_id}")
+        await self.jobs.recompute(job_id, exc)  # queued again; 503
 
     async def result_file(self, job_id: str, name: str) -> ResultFile:
         """A result file's verified bytes (held in memory after the first read: one ``stat`` per request)."""

@@ -17,10 +17,8 @@ from pydantic import ValidationError
 
 from relight.contract.models import JobPublic, JobState, JobSubmit
 from relight.server.problems import Conflict, NotFound
-from relight.server.services.base import in_thread
 from relight.server.services.jobs import JobService
 from relight.server.services.kinds import JobKind, Submission, kind_of, kinds
-from relight.worker.blobs import BlobCorrupt, BlobMissing
 
 if TYPE_CHECKING:
     from relight.server.state import Services
@@ -69,8 +67,5 @@ async def file(jobs: JobService, job_id: str, name: str, kind: str | None = None
     info = ((await result(jobs, job_id, kind)).get("files") or {}).get(name)
     if not isinstance(info, dict) or "sha256" not in info:
         raise NotFound(f"{kind or 'job'} {job_id} has no file {name!r}")
-    try:
-        path = await in_thread(jobs.store.verified_path, str(info["sha256"]))
-    except (BlobMissing, BlobCorrupt) as exc:
-        raise NotFound(f"the file {name!r} of {kind or 'job'} {job_id} is gone ({exc}); submit it again") from None
+    path = await jobs.verified_file(job_id, str(info["sha256"]))  # 503 and recomputed when missing or corrupt
     return path, str(info["sha256"]), str(info.get("media_type", "application/octet-stream"))

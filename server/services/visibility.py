@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from relight.contract.models import JobPublic, JobState, Measurement, Prediction, VisibilityCreate
 from relight.server.db import Job, utcnow
-from relight.server.problems import Conflict, NotFound, Unavailable
+from relight.server.problems import Conflict, NotFound
 from relight.server.services.base import aware, in_thread
 from relight.server.services.jobs import JobService
 from relight.server.services.kinds import JobKind, Submission, register
@@ -131,11 +131,7 @@ class VisibilityService:
         return data, digest, str(info["media_type"])
 
     async def _recompute(self, job_id: str, exc: BaseException) -> None:
-        log.warning("result of visibility job %s unusable (%s): recomputing", job_id, exc)
-        await self.jobs.requeue(job_id, "recomputing: the stored result was missing or corrupt",
-                                from_states=(JobState.succeeded.value,), capped=False)
-        raise Unavailable(f"the stored result of job {job_id} was missing or corrupt ({exc}); it is being "
-                          "recomputed", headers={"Retry-After": "2"}, job=f"/jobs/{job_id}")
+        await self.jobs.recompute(job_id, exc)  # queued again; 503
 
 
 __all__ = ["VISIBILITY", "VisibilityService"]
