@@ -41,7 +41,7 @@ lint: $(STAMP) web/node_modules/.installed
 	$(BIN)/ruff check relight server worker client contract tests bench tools
 	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null
 	cd build/pkgview && PYTHONPATH=. ../../$(BIN)/lint-imports --no-cache ../../pyproject.toml
-	cd web && node_modules/.bin/eslint src test eslint.config.js
+	cd web && node_modules/.bin/eslint src test eslint.config.js packages/relight-three/src packages/relight-three/test packages/relight-three/scripts
 
 typecheck: $(STAMP)
 	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null

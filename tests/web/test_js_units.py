@@ -23,3 +23,49 @@ def test_node_unit_tests_pass() -> None:
     assert node is not None, "node is not installed (the README's prerequisites: Node.js >= 20)"
     proc = subprocess.run([node, "--test", "test/"], cwd=REPO / "web", capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+
+
+PACKAGE = REPO / "web" / "packages" / "relight-three"
+
+
+def test_three_package_unit_tests_pass() -> None:
+    # the package's own `node --test` units; `three` resolves from web/node_modules (the parent folder's)
+    node = shutil.which("node")
+    assert node is not None, "node is not installed (the README's prerequisites: Node.js >= 20)"
+    proc = subprocess.run([node, "--test", "test/"], cwd=PACKAGE, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+
+
+def test_three_package_packs_and_imports(tmp_path: Path) -> None:
+    # `npm pack` builds the tarball a user installs; installed next to three (the peer dependency) in a fresh
+    # folder, `import '@relight/three'` gives the loader, the light probe and the material, and the tarball holds
+    # the types and the viewer's copied shaders but not the tests
+    import json
+    import tarfile
+
+    npm, node = shutil.which("npm"), shutil.which("node")
+    assert npm is not None and node is not None, "npm and node are needed"
+    proc = subprocess.run([npm, "pack", "--json", "--pack-destination", str(tmp_path)], cwd=PACKAGE,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    info = json.loads(proc.stdout)[0]
+    names = {f["path"] for f in info["files"]}
+    assert {"package.json", "README.md", "src/index.js", "types/index.d.ts", "src/viewer/glsl.js"} <= names
+    assert not any(n.startswith(("test/", "scripts/")) for n in names)
+    modules = tmp_path / "app" / "node_modules"
+    (modules / "@relight").mkdir(parents=True)
+    with tarfile.open(tmp_path / info["filename"]) as tar:
+        tar.extractall(tmp_path / "unpacked", filter="data")
+    (tmp_path / "unpacked" / "package").rename(modules / "@relight" / "three")
+    (modules / "three").symlink_to(REPO / "web" / "node_modules" / "three")
+    script = ("import * as R from '@relight/three'; import { LightProbe } from 'three';\n"
+              "const c = Array.from({length: 9}, (_, k) => [k, 0, 0]);\n"
+              "const p = R.lightProbeFromSH({convention: 'three', coefficients: c});\n"
+              "console.log(JSON.stringify({probe: p instanceof LightProbe, x: p.sh.coefficients[8].x,\n"
+              "  exports: Object.keys(R).sort()}));\n")
+    (tmp_path / "app" / "check.mjs").write_text(script, encoding="utf-8")
+    run = subprocess.run([node, "check.mjs"], cwd=tmp_path / "app", capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr[-2000:]
+    out = json.loads(run.stdout)
+    assert out["probe"] is True and out["x"] == 8
+    assert {"cubeChainTexture", "lightProbeFromSH", "ShrmMaterial", "RelightCubeChainLoader"} <= set(out["exports"])
