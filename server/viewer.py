@@ -6,6 +6,8 @@ Paths (none collides with an API route):
 * ``/src/...``, ``/shaders/...`` — the viewer's modules, styles and GLSL (``web/src``, ``web/shaders``);
 * ``/vendor/three/...`` — three.js from npm (``web/node_modules/three``, installed by ``npm ci --prefix web``),
   mapped to the bare specifiers ``three`` and ``three/addons/`` by the page's import map: no bundler, no CDN;
+* ``/packages/relight-three/...`` — the three.js package (``web/packages/relight-three/src``), mapped to
+  ``@relight/three`` by the import map (the side-by-side with three's PMREM uses it);
 * ``/samples/meshes/...`` — the sample mesh files (``data/meshes``: bunny.obj, teapot.obj); ``/meshes`` is the
   API's (uploaded and preloaded meshes in canonical order, ``server/api/routes/meshes.py``).
 
@@ -59,6 +61,8 @@ def mount_viewer(app: FastAPI, *, web_dir: Path = WEB_DIR, mesh_dir: Path = MESH
     app.add_api_route("/index.html", viewer_index, methods=["GET"], include_in_schema=False)
     app.mount("/src", _Static(directory=web_dir / "src"), name="viewer-src")
     app.mount("/shaders", _Static(directory=web_dir / "shaders"), name="viewer-shaders")
+    app.mount("/packages/relight-three", _Static(directory=web_dir / "packages" / "relight-three" / "src"),
+              name="viewer-relight-three")
     app.mount("/samples/meshes", _Static(directory=mesh_dir), name="viewer-meshes")
     three = web_dir / "node_modules" / "three"
     if (three / "build" / "three.module.js").is_file():
