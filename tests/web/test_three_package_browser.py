@@ -8,8 +8,10 @@
   PMREMGenerator on the same map: within 5 % relative RMS (2 % at r = 0), the issue's bound. Both are three's
   split-sum GGX (three's lod = maxLod r (2 - r)) of one map; they differ by three's sampling (256 GGX samples
   per texel on sharp levels, a 16^2 source for rough ones) and its cube size (256^2 from a 64-row map).
-* (The orientation of the adapter's faces is pinned in web/packages/relight-three/test/environment.test.js against
-  an independent OpenGL table-8.19 lookup.)
+* An octant-coloured map: three's background drawn from the chain (level 0, `scene.background`, six cameras
+  covering every face) and relight's viewer's mirror sphere (from the lat-long map) show, at every probe pixel,
+  the colour of the octant of that pixel's direction (the ray, or the reflection vector): no mirrored or swapped
+  faces (also pinned in web/packages/relight-three/test/environment.test.js against an OpenGL table-8.19 lookup).
 * A white Lambert sphere lit by three's LightProbe from the exported SH9 equals relight's own order-2 Lambert map
   (relight.prefilter with the Lambert lobe, sampled at the pixel normals) to 0.1 %: both are the exact order-2
   irradiance of the same pixel sums; what remains is the tessellated sphere's normals (256 x 128 segments: the
@@ -107,6 +109,86 @@ def test_metal_spheres_match_threes_pmrem(page: Any, viewer_server: Server, tmp_
     # VNDF samples reading coarser source mips, relight's the exact lobe); open, not asserted here
     for r, e in zip(ROUGHNESS[1:], rms[1:], strict=True):
         assert e <= 0.05, f"r = {r}: relative RMS {e:.4f} against three's PMREM (all: {rms})"
+
+
+def octant_map(h: int) -> np.ndarray:
+    d = latlong_dirs(h, 2 * h)
+    return np.asarray(np.stack([np.where(d[..., k] > 0, 1.0, 0.05) for k in range(3)], axis=-1), dtype=np.float32)
+
+
+def octant_bits(rgb: np.ndarray, dim: float, lit: float) -> np.ndarray:
+    """Which channels are lit rather than dim (midway between the two levels as the image encodes them)."""
+    return np.asarray(rgb > 0.5 * (dim + lit))
+
+
+#: Camera directions of the background views: one per face, tilted so that octant boundaries cross each view.
+LOOKS = [(1, 0.2, 0.3), (-1, -0.25, 0.2), (0.3, 1, -0.2), (-0.2, -1, 0.3), (0.25, -0.3, 1), (-0.3, 0.2, -1)]
+
+
+def test_octants_agree_in_three_and_in_relights_viewer(page: Any, viewer_server: Server, tmp_path: Any) -> None:
+    data = exr_bytes(octant_map(64), tmp_path)
+    page.set_input_files("#envmap-file", files=[{"name": "octants.exr", "mimeType": "image/x-exr", "buffer": data}])
+    env_id = hashlib.sha256(data).hexdigest()
+    page.wait_for_function("(id) => window.relight.environmentId === id", arg=env_id, timeout=120_000)
+    export(viewer_server, env_id, target="three", format="ktx2", size=64)
+    res = page.evaluate("""async ([id, size, looks]) => {""" + IMPORTS + """
+        const v = window.relight.viewer;
+        v.setFixedSize([size, size]);
+        v.setFixedView({ view: [0, 0, 1], orthographic: true });
+        v.setOptions({ shading: 'plain', exposure: 0, tonemap: 'none', background: false, rotation: 0 });
+        v.render();
+        const viewer = Array.from(v.readPixels().data);
+        v.setFixedSize(null); v.setFixedView(null); v.setOptions({ background: true });
+        const url = `/envmaps/${id}/ibl?target=three&format=ktx2&size=64`;
+        const chain = R.cubeChainTexture(new Uint8Array(await (await fetch(url)).arrayBuffer()));
+        const renderer = new THREE.WebGLRenderer({ canvas: document.createElement('canvas') });
+        const target = new THREE.WebGLRenderTarget(size, size, { type: THREE.FloatType });
+        const scene = new THREE.Scene();
+        scene.background = chain;
+        const views = looks.map((look) => {
+          const cam = new THREE.PerspectiveCamera(90, 1, 0.1, 10);
+          cam.up.set(0, 1, 0);
+          cam.lookAt(...look);
+          cam.updateMatrixWorld();
+          renderer.setRenderTarget(target);
+          renderer.render(scene, cam);
+          const px = new Float32Array(size * size * 4);
+          renderer.readRenderTargetPixels(target, 0, 0, size, size, px);
+          return { px: Array.from(px), world: cam.matrixWorld.toArray(),
+                   unproject: cam.projectionMatrixInverse.toArray() };
+        });
+        renderer.setRenderTarget(null);
+        renderer.dispose();
+        return { viewer, views };
+    }""", [env_id, SIZE, LOOKS])
+    # the viewer's mirror sphere: the octant of R = 2 (n.v) n - v (v = +Z, relight.shrm.sphere_geometry's camera)
+    view = np.array([0.0, 0.0, 1.0])
+    n, mask = sphere_geometry(view, SIZE)
+    r = 2 * (n @ view)[..., None] * n - view
+    # probe pixels ~ 10 degrees from every octant boundary and off the rim (the map's pixels are 2.8 degrees)
+    probe = mask & (np.abs(r).min(axis=-1) > 0.18) & (n[..., 2] > 0.35)
+    viewer = np.asarray(res["viewer"], dtype=np.float64).reshape(SIZE, SIZE, 4)[..., :3]
+    # tone map none, then sRGB: 0.05 -> 0.25, 1 -> 1
+    wrong = (octant_bits(viewer, 0.25 * 255, 255) != (r > 0)).any(axis=-1) & probe
+    assert probe.sum() > 300 and wrong.sum() == 0, f"viewer: {wrong.sum()} of {probe.sum()} probe pixels"
+    # three's background: the ray of every pixel centre from the camera's matrices (row 0 at the bottom)
+    c = (np.arange(SIZE) + 0.5) / SIZE * 2 - 1
+    x, y = np.meshgrid(c, c)
+    ndc = np.stack([x, y, np.ones_like(x), np.ones_like(x)], axis=-1)
+    total = 0
+    for look, v3 in zip(LOOKS, res["views"], strict=True):
+        unproject = np.asarray(v3["unproject"]).reshape(4, 4).T  # three's toArray is column-major
+        world = np.asarray(v3["world"]).reshape(4, 4).T
+        p = ndc @ unproject.T
+        d = (p[..., :3] / p[..., 3:]) @ world[:3, :3].T
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        px = np.asarray(v3["px"], dtype=np.float64).reshape(SIZE, SIZE, 4)[..., :3]
+        probe3 = np.abs(d).min(axis=-1) > 0.18
+        wrong3 = (octant_bits(px, 0.05, 1.0) != (d > 0)).any(axis=-1) & probe3  # a linear float target
+        assert wrong3.sum() == 0, (f"three, looking at {look}: {wrong3.sum()} of {probe3.sum()} probe pixels: "
+                                   f"{d[wrong3][:5].round(3).tolist()} -> {px[wrong3][:5].round(3).tolist()}")
+        total += int(probe3.sum())
+    assert total > 6 * SIZE * SIZE // 4
 
 
 def test_light_probe_lambert_equals_relights_order_2_map(page: Any, viewer_server: Server, tmp_path: Any) -> None:
