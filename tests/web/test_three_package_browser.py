@@ -211,3 +211,66 @@ def test_light_probe_lambert_equals_relights_order_2_map(page: Any, viewer_serve
     assert (got[..., 3][inner] > 0).all()
     rel = np.sqrt(((have - want) ** 2).sum() / (want**2).sum())
     assert rel <= 1e-3, f"relative RMS {rel:.2e}"
+
+
+def test_shrm_material_teapot_equals_the_viewer(page: Any, viewer_server: Server, tmp_path: Any) -> None:
+    """The package's ShrmMaterial on the viewer's teapot, camera and SHRM (a view-dependent BRDF, P = 2: eq. 6
+    per pixel and eq. 12 via the view map) against the viewer's own canvas: within 1/255 on >= 99.9 % of the
+    pixels (the issue's bound). Same GLSL, same float16 layers, same uniforms: only the draw differs."""
+    from tests.web.test_viewer_browser import compute, upload_map
+
+    kinds = page.evaluate("window.relight.models.map(m => m.kind)")
+    general = [k for k in ("microfacet", "ggx", "torrance-sparrow", "blinn-phong", "ward") if k in kinds]
+    assert general, f"the server offers no view-dependent analytic BRDF (models: {kinds})"
+    upload_map(page, tmp_path)
+    page.select_option("#brdf-kind", general[0])
+    page.check("input[name=accuracy][value=orders]")
+    page.fill("#order-f", "8")
+    page.fill("#order-p", "2")
+    page.dispatch_event("#order-p", "input")
+    page.wait_for_function("/P_B = 2/.test(document.getElementById('plan').innerText)", timeout=60_000)
+    shrm_id = compute(page)
+    res = page.evaluate("""async ([id, size]) => {""" + IMPORTS + """
+        const O = await import('/src/objects.js');
+        const v = window.relight.viewer;
+        v.setObject(await O.loadSample('teapot'), 'teapot');
+        v.setFixedSize([size, size]);
+        v.setFixedView({ view: [0.3, 0.8, -0.5], orthographic: true });
+        const manifest = await (await fetch(`/shrms/${id}`)).json();
+        const coefficients = await (await fetch(`/shrms/${id}/coefficients.bin`)).arrayBuffer();
+        const canvas = document.createElement('canvas');
+        const renderer = new THREE.WebGLRenderer({ canvas, preserveDrawingBuffer: true, antialias: false });
+        renderer.setPixelRatio(1);
+        renderer.setSize(size, size, false);
+        renderer.setClearColor(0x000000, 1);
+        const out = {};
+        for (const mode of ['near', 'distant']) {
+          v.setOptions({ mode, exposure: 0, tonemap: 'aces', background: false, rotation: 0 });
+          v.render();
+          const viewer = v.readPixels();
+          const camera = v._activeCamera();
+          const material = new R.ShrmMaterial({ manifest, coefficients, mode, exposure: 0, tonemap: 'aces' });
+          const obj = v.primary;
+          const mesh = new THREE.Mesh(obj.mesh.geometry, material);
+          mesh.position.copy(obj.center);
+          mesh.scale.setScalar(obj.radius);
+          const scene = new THREE.Scene();
+          scene.add(mesh);
+          renderer.render(scene, camera);
+          const gl = renderer.getContext();
+          const px = new Uint8Array(size * size * 4);
+          gl.readPixels(0, 0, size, size, gl.RGBA, gl.UNSIGNED_BYTE, px);
+          material.dispose();
+          out[mode] = { viewer: Array.from(viewer.data), three: Array.from(px) };
+        }
+        renderer.dispose();
+        v.setFixedSize(null); v.setFixedView(null); v.setObject('sphere'); v.setOptions({ background: true });
+        return out;
+    }""", [shrm_id, 128])
+    for mode, imgs in res.items():
+        a = np.asarray(imgs["viewer"], dtype=np.int64).reshape(128, 128, 4)[..., :3]
+        b = np.asarray(imgs["three"], dtype=np.int64).reshape(128, 128, 4)[::-1, :, :3]  # GL rows: bottom first
+        covered = (a.sum(axis=-1) > 0).mean()
+        assert covered > 0.15, f"{mode}: the teapot covers only {covered:.1%} of the viewer's image"
+        within = (np.abs(a - b).max(axis=-1) <= 1).mean()
+        assert within >= 0.999, f"{mode}: {within:.4%} of the pixels within 1/255 (max {np.abs(a - b).max()})"
