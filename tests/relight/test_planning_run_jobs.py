@@ -149,3 +149,28 @@ def test_job_files_equal_the_core_computations(run: tuple[planning.Plan, Path, A
     assert npz["transport"].shape == (mesh.n_vertices, factors.terms, (pj.params["order"] + 1) ** 2)
     # the plan's K captures 1 - epsilon of the factored BRDF's energy (seed 004's rule)
     assert rj.summary["captured"] >= 1.0 - EPS
+
+
+# ------------------------------------------------------------------------------------------------ measured on meshes
+def test_mesh_representations_measured_within_predicted(tmp_path: Path) -> None:
+    """Issue 16 item 4: each mesh object's measured error (relight.planning.measure_mesh: the run's per-vertex data
+    shaded as the renderers do, against the per-vertex brute force over every map pixel with ray-cast visibility)
+    is within the plan's predicted relative RMS. Measured here (2026-11-28): diffuse transfer 0.086 against 0.198
+    predicted, in-out PRT (K = 9) 0.071 against 0.570. Not asserted: the anisotropic PRT matrix (brushed metal,
+    F = 6, 1024 rays) measures 0.338 against 0.280 predicted on this floor — open in issue 16's report."""
+    from relight.planning.measure_mesh import measure_mesh_lobes
+
+    mesh = str(floor_glb(tmp_path / "floor.glb"))
+    scene = planning.scene_from_dict({"environment": "courtyard", "epsilon": EPS, "size": 8, "objects": [
+        obj("lambert:albedo=0.7", "floor", mesh=mesh, shadows="exact"),
+        obj("phong:s=4", "soft", mesh=mesh, shadows="exact")]})
+    px = np.asarray(resample_latlong(read_envmap(DATA / "courtyard.exr").pixels, 32), dtype=np.float64)
+    plan = planning.plan_scene(scene, px, calibration=costmodel.default_calibration())
+    run = planning.run_plan(plan, write=False)
+    seen = {}
+    for o in plan.report.objects:
+        for m in measure_mesh_lobes(plan, run, o.name):
+            seen[m["representation"]] = m
+            assert m["measured"] is not None and m["vertices"] > 50, (o.name, m)
+            assert m["error_kind"] == "bounded" and m["measured"] <= m["predicted"], (o.name, m)
+    assert set(seen) == {"diffuse_transfer", "inout_prt"}
