@@ -6,9 +6,10 @@ One run, one GL context: the unit sphere and the ~100K-vertex bunny (``bunny-100
 level looked up at R (``plain``: one texture lookup per pixel, the baseline), K = 3 Gaussian lobes (eq. 5), and
 K = 3 with 16-coefficient SH visibility at the lobe centres (eq. 7, ``sh``) or convolved with the lobes
 (``sh-lobe``), all through ``web/shaders/gaussian*.glsl`` (``relight.gl.gaussian``). Milliseconds per frame (the
-median of ``--repeats`` timed batches of ``--frames`` frames each, after a warm-up) and the ratio to ``plain`` of the
-same object (the issue's target: <= 3x for K = 3 + SH16). SwiftShader/llvmpipe absolute times say nothing about a
-GPU; the ratios are the figure.
+median of ``--repeats`` timed batches of ``--frames`` frames each, after a warm-up; the shaders take turns batch by
+batch, so a change of the shared machine's load hits them alike; the load average is in the JSON) and the ratio to
+``plain`` of the same object (the issue's target: <= 3x for K = 3 + SH16). SwiftShader/llvmpipe absolute times
+say nothing about a GPU; the ratios are the figure.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import time
 from pathlib import Path
@@ -55,23 +57,22 @@ def main() -> None:
     cases = [("plain", {"plain": True}), ("K3", {}), ("K3+SH16", {"mode": "sh"}), ("K3+SH16 lobe", {"mode": "sh-lobe"})]
     out: dict[str, object] = {"size": args.size, "frames": args.frames, "mesh": args.mesh,
                               "vertices": mesh.n_vertices, "lobes": fit.n_lobes, "levels": len(chain.levels),
-                              "visibility_seconds": vis_s, "objects": {}}
+                              "visibility_seconds": vis_s, "load_average": os.getloadavg(), "objects": {}}
     print(f"{args.size}x{args.size}, K = {fit.n_lobes}, {len(chain.levels)} chain levels of "
           f"{chain.levels[0].map.shape[0]} rows; {args.mesh}: {mesh.n_vertices} vertices")
     print(f"{'object':>10} {'shader':>14} {'ms/frame':>10} {'x plain':>8}")
     for obj in ("sphere", "mesh"):
-        rows = {}
-        for name, kw in cases:
-            if obj == "sphere" and "mode" in kw:
-                continue
-            mesh_kw = {} if obj == "sphere" else {"mesh": bufs}
+        mesh_kw = {} if obj == "sphere" else {"mesh": bufs}
+        todo = [(name, kw) for name, kw in cases if obj == "mesh" or "mode" not in kw]
+        for _, kw in todo:
             r.render(view, args.size, frames=2, **mesh_kw, **kw)  # type: ignore[arg-type]  # warm-up, compile
-            times = []
-            for _ in range(args.repeats):
+        times: dict[str, list[float]] = {name: [] for name, _ in todo}
+        for _ in range(args.repeats):  # round robin: a change of the machine's load hits every shader alike
+            for name, kw in todo:
                 t0 = time.perf_counter()
                 r.render(view, args.size, frames=args.frames, **mesh_kw, **kw)  # type: ignore[arg-type]
-                times.append((time.perf_counter() - t0) / args.frames * 1e3)
-            rows[name] = statistics.median(times)
+                times[name].append((time.perf_counter() - t0) / args.frames * 1e3)
+        rows = {name: statistics.median(t) for name, t in times.items()}
         for name, ms in rows.items():
             print(f"{obj:>10} {name:>14} {ms:10.2f} {ms / rows['plain']:8.2f}")
         out["objects"][obj] = {name: {"ms": ms, "ratio": ms / rows["plain"]} for name, ms in rows.items()}  # type: ignore[index]

@@ -12,8 +12,9 @@ Better than the paper's trust-region fit of all 5K parameters (~10 min per BRDF 
 * **Continuation**: theta_o = 0 first (mu = 0 by symmetry, several widths), then each elevation warm-started from
   the previous one, plus restarts with dead lobes re-seeded at the residual's peak and a fresh start; the best wins.
 * **Canonical order**: widest lobe first at theta_o = 0; afterwards each elevation's lobes are matched to the previous
-  elevation's: for K <= 5 the permutation whose interpolation with the previous elevation fits the mid-elevation
-  slice best, else ``scipy.optimize.linear_sum_assignment`` on the parameter distance; so interpolating between
+  elevation's: for K <= 5, of the permutations whose interpolation with the previous elevation fits the
+  mid-elevation slice within 5 % of the best, the one with the fewest fades (a live lobe keeps its slot), else
+  ``scipy.optimize.linear_sum_assignment`` on the parameter distance; so interpolating between
   neighbouring elevations blends the same lobe. Near-duplicate lobes are merged; a lobe with no weight takes the
   (mu, sigma) of the same lobe at the nearest elevation where it lives (interpolation then only fades it).
 * **More lobes only where needed** (``max_lobes`` > K): at elevations whose error exceeds ``refine_above`` a lobe is

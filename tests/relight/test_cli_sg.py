@@ -53,6 +53,25 @@ def test_chain_writes_levels(tmp_path: Path) -> None:
     assert all((tmp_path / "c" / e["file"]).is_file() for e in man["levels"])
 
 
+def test_chain_epsilon_sets_every_levels_order(tmp_path: Path) -> None:
+    """``relight chain ENVMAP --epsilon E``: the same levels (sigma0 to 90 degrees), each level's order from E (a
+    tighter tolerance never lowers an order and raises some); ``--levels`` and ``--epsilon`` together are a usage
+    error (the issue's ``[--levels L | --epsilon E]``)."""
+    env = tmp_path / "env.exr"
+    write_exr(env, np.asarray(resample_latlong(read_envmap(DATA / "courtyard.exr").pixels, 32), dtype=np.float32))
+    for eps, name in ((1e-2, "loose"), (1e-5, "tight")):
+        assert main(["chain", str(env), "--epsilon", str(eps), "--out", str(tmp_path / name)]) == 0
+    loose, tight = (json.loads((tmp_path / n / "chain.json").read_text())["levels"] for n in ("loose", "tight"))
+    assert [e["sigma"] for e in loose] == [e["sigma"] for e in tight] and len(loose) >= 3
+    assert loose[-1]["sigma"] >= math.pi / 4  # the last level reaches the widest lobes (doubling up to 90 degrees)
+    f_loose = [e["orders"]["F_B"] for e in loose]
+    f_tight = [e["orders"]["F_B"] for e in tight]
+    assert all(b >= a for a, b in zip(f_loose, f_tight, strict=True)) and f_tight != f_loose, (f_loose, f_tight)
+    with pytest.raises(SystemExit) as ex:
+        main(["chain", str(env), "--levels", "3", "--epsilon", "1e-3", "--out", str(tmp_path / "both")])
+    assert ex.value.code == 2 and not (tmp_path / "both").exists()
+
+
 def test_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["fit", "phong:s=10", "--lobes", "0", "--out", str(tmp_path / "x.json")]) == 2
     assert "lobes" in capsys.readouterr().err
