@@ -38,7 +38,7 @@ PRELOAD_SUFFIXES = (".exr", ".hdr", ".png", ".jpg", ".jpeg")
 #: kinds with a service (shrm, tradeoff, scene) register when their service's module is imported above.
 KIND_MODULES: tuple[str, ...] = ("relight.server.services.sh_tables", "relight.server.services.gaussian",
                                  "relight.server.services.ibl", "relight.server.services.factorizations",
-                                 "relight.server.services.inout")
+                                 "relight.server.services.inout", "relight.server.services.sh_transfers")
 
 
 @dataclass

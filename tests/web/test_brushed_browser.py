@@ -252,3 +252,71 @@ def test_order_window_grid_draws_the_cpu_result(page: Any, viewer_server: Server
         top = renders[(r, 8, "none")]
         for other in (renders[(r, 2, "none")], renders[(r, 8, "hann")]):
             assert np.abs(top - other).max() > 0.05 * np.abs(top).max()
+
+
+def test_interreflections_on_the_teapot_match_cpu(page: Any, viewer_server: Server, tmp_path: Path) -> None:
+    """Shadows + interreflections (an ``sh_transfer`` job: ``relight.sh_prt_bounce.vertex_transfer`` with the BRDF
+    fixed, one bounce) on the teapot: the page's transfer-mode radiance equals ``shade_prt`` with the job's float16
+    world matrices folded on the CPU (tolerance as above), and differs from the shadow-only matrices of the same
+    job by far more than the tolerance: the bounce is in what the page draws. Bad requests are 422s naming the
+    field."""
+    upload_map(page, tmp_path)
+    brdf = "ashikhmin-shirley:nu=24,nv=8,rs=0.6,rd=0.1"
+    with httpx.Client(base_url=viewer_server.url, timeout=300) as http:
+        r = http.post("/meshes?name=teapot.obj", content=(mesh_dir() / "teapot.obj").read_bytes())
+        assert r.status_code in (200, 201), r.text
+        info = r.json()
+        base = {"mesh": info["id"], "brdf": brdf, "order": 2, "resolution": 8}
+        for change, field in (({"bounces": 9}, "bounces"), ({"tangent": {"kind": "project"}}, "direction"),
+                              ({"brdf": "ashikhmin-shirley:nu=-1,nv=8"}, "nu")):
+            bad = http.post("/jobs", json={"kind": "sh_transfer", "request": {**base, **change}})
+            assert bad.status_code == 422 and field in bad.text, (change, bad.text)
+    page.evaluate("() => window.relight.brushed.refreshObjects()")
+    page.select_option("#brushed-object", info["id"])
+    page.fill("#brushed-brdf", brdf)
+    page.select_option("#brushed-order", str(ORDER))
+    page.fill("#brushed-resolution", str(RES))
+    page.fill("#brushed-direction", ",".join(map(str, DIRECTION)))
+    page.select_option("#brushed-prt", "interreflections")
+    page.fill("#brushed-bounces", "1")
+    page.fill("#brushed-rays", "64")
+    set_controls(page)
+    page.click("#brushed-load")
+    page.wait_for_function("window.relight.brushed.ready === true || "
+                           "document.getElementById('brushed-error').textContent !== ''", timeout=300_000)
+    assert page.evaluate("document.getElementById('brushed-error').textContent") == ""
+    got = page.evaluate("""(a) => {
+      const b = window.relight.brushed;
+      b.rotation = a.rotation; b.viewAz = a.az; b.viewEl = a.el;
+      return { light: Array.from(b.lighting()), view: b.view(), normals: Array.from(b.object.normals),
+        transfer: b.transferJob, table: b.tableJob, probe: Array.from(b.probe('transfer')) };
+    }""", {"rotation": ROTATION, "az": VIEW_AZ, "el": VIEW_EL})
+    screenshot(page, "brushed_teapot_interreflections")
+    with httpx.Client(base_url=viewer_server.url, timeout=60) as http:
+        result = http.get(f"/jobs/{got['transfer']}/result").raise_for_status().json()
+        raw = np.frombuffer(http.get(f"/jobs/{got['table']}/files/table.bin").content, dtype="<f2")
+        mats = {}
+        for name in ("direct.bin", "transfer.bin"):
+            tex = result["textures"][name]
+            bits = np.frombuffer(http.get(f"/jobs/{got['transfer']}/files/{name}").content, "<f2")
+            flat = bits.astype(np.float64).reshape(-1, 4)[: tex["vertices"] * tex["texels_per_vertex"]]
+            mats[name] = flat.reshape(tex["vertices"], -1)[:, : tex["values_per_vertex"]]
+    assert result["bounces"] == 1 and result["vertices"] == info["vertices"]
+    n = (ORDER + 1) ** 2
+    normals = np.asarray(got["normals"]).reshape(-1, 3)
+    frames = projected_frames(normals, DIRECTION)
+    light = np.asarray(got["light"]).reshape(-1, 3)
+    view = np.asarray(got["view"])
+    reference = build_table(parse_frame_brdf(brdf), order=ORDER, resolution=RES)
+    same = SHTable(raw.astype(np.float64).reshape(n, RES, RES, 1).transpose(1, 2, 0, 3), reference.views,
+                   reference.valid, ORDER, "parabolic", {})
+    vl = np.einsum("nij,j->ni", frames, view)
+    folded = folded_transfer(frames, mats["transfer.bin"].reshape(-1, n, n), ORDER)
+    cpu = shade_prt(same, light, frames, view, folded, exact_azimuth=False)
+    tol = tolerance(same, np.einsum("vij,jc->vic", folded, light), vl)
+    gpu = np.asarray(got["probe"]).reshape(-1, 3)
+    assert np.abs(cpu).max() > 0.05 and (vl[:, 2] > 0).sum() > 100
+    assert np.all(np.abs(gpu - cpu) <= tol), float(np.abs(gpu - cpu).max())
+    direct = shade_prt(same, light, frames, view, folded_transfer(frames, mats["direct.bin"].reshape(-1, n, n), ORDER),
+                       exact_azimuth=False)
+    assert np.abs(direct - cpu).max() > 10 * tol.max()

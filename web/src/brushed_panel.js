@@ -13,6 +13,7 @@ import { parseGeometry, projectLatlongHalf, rotateLightingY } from './prt.js';
 import { loadSources } from './shaders.js';
 import { capLight, addLighting, sphereGeometry, tangentField, tangentLines, windowLighting } from './sh_lights.js';
 import { SHADER_FILES, SHTableGL } from './sh_table.js';
+import { tableRgb, transferLayout, viewProjection } from './sh_table_data.js';
 
 const DEFAULT_BRDF = 'ashikhmin-shirley:nu=48,nv=16,rs=0.05,rd=0';
 const TIMED_FRAMES = 20;
@@ -21,57 +22,6 @@ in vec3 a_position; uniform mat4 u_view_projection;
 void main() { gl_Position = u_view_projection * vec4(a_position, 1.0); gl_Position.z -= 0.002; }`;
 const LINES_FS = `#version 300 es
 precision mediump float; out vec4 o_color; void main() { o_color = vec4(0.1, 1.0, 0.4, 1.0); }`;
-
-/** Column-major orthographic view-projection looking from `dir` (toward the viewer) at the unit ball. */
-export function viewProjection(dir, half = 1.15) {
-  const v = dir.map((x) => x / Math.hypot(...dir));
-  const up = Math.abs(v[1]) > 0.99 ? [0, 0, 1] : [0, 1, 0];
-  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-  const norm = (a) => a.map((x) => x / Math.hypot(...a));
-  const r = norm(cross(up, v));
-  const u = cross(v, r);
-  const [near, far] = [0.5, 5.5];
-  const eye = v.map((x) => 3 * x);
-  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-  const zs = -2 / (far - near);
-  const rows = [[...r.map((x) => x / half), -dot(r, eye) / half], [...u.map((x) => x / half), -dot(u, eye) / half],
-    [...v.map((x) => x * zs), -dot(v, eye) * zs - (far + near) / (far - near)], [0, 0, 0, 1]];
-  const out = new Float32Array(16);
-  for (let c = 0; c < 4; c += 1) {
-    for (let k = 0; k < 4; k += 1) {
-      out[4 * c + k] = rows[k][c];
-    }
-  }
-  return out;
-}
-
-/** table.bin (float16 [(F+1)^2, R, R, C]) as RGB float16 bits (C = 1 repeated). */
-export function tableRgb(half, channels) {
-  if (channels === 3) {
-    return half;
-  }
-  const out = new Uint16Array(3 * half.length);
-  for (let k = 0; k < half.length; k += 1) {
-    out.fill(half[k], 3 * k, 3 * k + 3);
-  }
-  return out;
-}
-
-/**
- * A visibility job's shadow_matrix.bin (relight.vertex_texture: ceil(n^2 / 4) RGBA texels per vertex, the n x n
- * matrix row-major) as setTransfer's layout (count, n, 4 ceil(n / 4)), rows zero-padded.
- */
-export function transferLayout(half, texture, n) {
-  const row = 4 * Math.ceil(n / 4);
-  const out = new Uint16Array(texture.vertices * n * row);
-  for (let v = 0; v < texture.vertices; v += 1) {
-    const base = 4 * v * texture.texels_per_vertex;
-    for (let i = 0; i < n; i += 1) {
-      out.set(half.subarray(base + i * n, base + (i + 1) * n), (v * n + i) * row);
-    }
-  }
-  return out;
-}
 
 function controls() {
   const cap = (k, on, az, el, sr, colour) => `<fieldset><legend>area light ${k + 1}</legend>
@@ -106,7 +56,8 @@ function controls() {
       </select></label> <span id="brushed-window-cost"></span>
     <label><input type="checkbox" id="brushed-tangents"> tangent field</label>
     <label>shadows <select id="brushed-prt"><option value="off">off</option><option value="shadows">PRT shadows
-      </option></select></label>
+      </option><option value="interreflections">shadows + interreflections</option></select></label>
+    <label>bounces <input id="brushed-bounces" type="number" min="1" max="4" value="1"></label>
     <label>rays <input id="brushed-rays" type="number" min="16" max="4096" value="256"></label>
     <button id="brushed-time" type="button">Time modes (Table 1)</button>
     <div id="brushed-table1"></div>
@@ -155,6 +106,12 @@ export function initBrushed(state, $, showError) {
     }
   }
 
+  /** The chosen tangent field as a job's request names it (sh_transfer's tangent). */
+  function tangentSpec() {
+    const kind = $('brushed-tangent').value;
+    return kind === 'project' ? { kind, direction: $('brushed-direction').value.split(',').map(Number) } : { kind };
+  }
+
   /** The object's geometry normalised into the unit ball, with the chosen tangent field. */
   async function loadObject() {
     const id = $('brushed-object').value;
@@ -170,10 +127,9 @@ export function initBrushed(state, $, showError) {
       const positions = Float32Array.from(raw.positions, (x, k) => (x - 0.5 * (lo[k % 3] + hi[k % 3])) * s);
       g = { positions, normals: raw.normals, indices: raw.indices, meshTangents: raw.tangents, id };
     }
-    const kind = $('brushed-tangent').value;
-    const spec = kind === 'project' ? { kind, direction: $('brushed-direction').value.split(',').map(Number) }
-      : kind === 'mesh' && g.meshTangents ? { kind, tangents: g.meshTangents } : { kind: 'azimuthal' };
-    g.tangents = tangentField(g.normals, spec);
+    const spec = tangentSpec();
+    g.tangents = tangentField(g.normals, spec.kind === 'mesh' ? (g.meshTangents ? { kind: 'mesh',
+      tangents: g.meshTangents } : { kind: 'azimuthal' }) : spec);
     const count = g.normals.length / 3;
     g.count = count;
     g.vertices = new Float32Array(10 * count);
@@ -206,6 +162,7 @@ export function initBrushed(state, $, showError) {
     panel.table = new SHTableGL(gl, panel.read, { order: man.order, layout: man.layout, resolution: man.resolution,
       half: tableRgb(new Uint16Array(buffer), man.channels) });
     panel.tableJob = id;
+    panel.brdfRequest = request.brdf;
     panel.manifest = man;
     panel.envKey = null;
     panel.prepared = null;
@@ -365,7 +322,7 @@ export function initBrushed(state, $, showError) {
   }
 
   async function loadShadows() {
-    if ($('brushed-prt').value !== 'shadows') {
+    if ($('brushed-prt').value === 'off') {
       panel.transferJob = null;
       if (panel.mode === 'transfer') {
         panel.mode = 'general';
@@ -375,20 +332,34 @@ export function initBrushed(state, $, showError) {
     }
     const mesh = $('brushed-object').value;
     if (mesh === 'sphere') {
-      throw new Error('PRT shadows need a service mesh (the sphere is convex: nothing to shadow)');
+      throw new Error('PRT transfer needs a service mesh (the sphere is convex: nothing to shadow or reflect)');
     }
-    const id = await job(null, { mesh, order: panel.table.order, rays: Number($('brushed-rays').value),
-      kind: 'shadow_matrix' }, '/visibility');
-    const man = await state.api.request('GET', `/visibility/${id}`);
-    const buffer = await state.api.request('GET', `/visibility/${id}/files/shadow_matrix.bin`,
-      { as: 'arrayBuffer' });
     const n = (panel.table.order + 1) ** 2;
-    panel.table.setTransfer(transferLayout(new Uint16Array(buffer), man.files['shadow_matrix.bin'].texture, n),
-      panel.object.count, { world: true });
+    const rays = Number($('brushed-rays').value);
+    let half;
+    let texture;
+    let id;
+    if ($('brushed-prt').value === 'interreflections') {
+      // the BRDF is fixed into the bounces (§5): an sh_transfer job of this table's BRDF, order and tangent field
+      id = await job('sh_transfer', { mesh, brdf: panel.brdfRequest, order: panel.table.order,
+        resolution: panel.manifest.resolution, tangent: tangentSpec(), bounces: Number($('brushed-bounces').value),
+        rays });
+      const result = await state.api.request('GET', `/jobs/${id}/result`);
+      half = new Uint16Array(await state.api.request('GET', `/jobs/${id}/files/transfer.bin`, { as: 'arrayBuffer' }));
+      texture = result.textures['transfer.bin'];
+      status(`PRT shadows and ${result.bounces} bounce(s): order ${result.order}, ${result.rays} rays per vertex`);
+    } else {
+      id = await job(null, { mesh, order: panel.table.order, rays, kind: 'shadow_matrix' }, '/visibility');
+      const man = await state.api.request('GET', `/visibility/${id}`);
+      half = new Uint16Array(await state.api.request('GET', `/visibility/${id}/files/shadow_matrix.bin`,
+        { as: 'arrayBuffer' }));
+      texture = man.files['shadow_matrix.bin'].texture;
+      status(`PRT shadows: order ${man.order}, ${man.rays} rays per vertex`);
+    }
+    panel.table.setTransfer(transferLayout(half, texture, n), panel.object.count, { world: true });
     panel.transferJob = id;
     panel.mode = 'transfer';
     $('brushed-mode').value = 'transfer';
-    status(`PRT shadows: order ${man.order}, ${man.rays} rays per vertex`);
   }
 
   async function load() {

@@ -12,7 +12,7 @@ import { realHarmonics } from './sh.js';
 import { loadSources } from './shaders.js';
 import { sphereGeometry, tangentField, windowLighting } from './sh_lights.js';
 import { SHADER_FILES, SHTableGL } from './sh_table.js';
-import { tableRgb, viewProjection } from './brushed_panel.js';
+import { tableRgb, viewProjection } from './sh_table_data.js';
 import { tonemapImage } from './tonemap.js';
 
 const MATERIALS = ['ashikhmin-shirley:nu=12,nv=4,rs=0.05,rd=0', 'ashikhmin-shirley:nu=24,nv=8,rs=0.05,rd=0',

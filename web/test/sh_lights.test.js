@@ -1,10 +1,10 @@
-// web/src/sh_lights.js (cap lights, windows, tangent fields) and the layout helpers of web/src/brushed_panel.js,
+// web/src/sh_lights.js (cap lights, windows, tangent fields) and the layout helpers of web/src/sh_table_data.js,
 // against references that share none of their formulas: quadrature of the cap's indicator, the windows' defining
 // values, orthonormality and the fallback at the tangent fields' singular points.
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
-import { tableRgb, transferLayout, viewProjection } from '../src/brushed_panel.js';
+import { tableRgb, transferLayout, viewProjection } from '../src/sh_table_data.js';
 import { realHarmonics, shCount } from '../src/sh.js';
 import { capLight, legendre, tangentField, windowFactors, windowLighting } from '../src/sh_lights.js';
 
