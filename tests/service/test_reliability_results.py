@@ -76,6 +76,8 @@ CASES: dict[str, Case] = {
     "inout_prt": ("/jobs", lambda i: {"mesh": i["mesh"], "brdf": "phong:s=8", "order": 2, "rays": 64},
                   "/jobs/{id}/files/{name}"),
     "sh_table": ("/jobs", lambda i: {"brdf": "phong:s=8", "order": 2, "resolution": 8}, "/jobs/{id}/files/{name}"),
+    "sh_transfer": ("/jobs", lambda i: {"mesh": i["mesh"], "brdf": "phong:s=8", "order": 2, "resolution": 8,
+                                        "rays": 64}, "/jobs/{id}/files/{name}"),
 }
 
 

@@ -91,6 +91,8 @@ SAMPLES: dict[str, Callable[[dict[str, Any], int], dict[str, Any]]] = {
     "ibl": lambda s, k: {"envmap": s["env"], "target": "gltf", "size": 4, "levels": 2 + k},
     "factorization": lambda s, k: {"brdf": "phong:s=8", "resolution": 8 + k, "factors": 2},
     "inout_prt": lambda s, k: {"mesh": s["mesh"], "brdf": "phong:s=4", "terms": 3, "order": 1, "rays": 16 + k},
+    "sh_transfer": lambda s, k: {"mesh": s["mesh"], "brdf": "phong:s=4", "order": 1, "resolution": 4,
+                                 "rays": 16 + k},
 }
 
 
