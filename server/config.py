@@ -65,6 +65,11 @@ class Settings(BaseSettings):
     max_mesh_vertices: int = Field(2_000_000, ge=3, description="most vertices a mesh file may declare")
     max_mesh_faces: int = Field(4_000_000, ge=1, description="most triangles a mesh file may declare")
     progress_interval_s: float = Field(0.25, ge=0, description="least seconds between stored progress updates")
+    job_lease_s: float = Field(30.0, ge=1, description="a server's claim on a job it computes lasts this long unless "
+                               "renewed (every quarter of it); another server on the same database takes over a "
+                               "job whose claim has lapsed (its server died)")
+    follow_interval_s: float = Field(0.5, gt=0, le=10, description="event streams of a job computed by another "
+                                     "server read its row this often")
     log_level: str = "info"
 
     #: TEST ONLY: seconds each job waits (reporting progress) before computing, so tests can act "mid-job".

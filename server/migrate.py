@@ -6,7 +6,8 @@ every kind (:class:`relight.server.db.Job`). At start-up (:meth:`relight.server.
 
 1. a schema-1 ``jobs`` table (no ``kind`` column) is renamed ``jobs_v1`` and its index dropped (the new table's
    index has the same name);
-2. the schema-2 tables are created;
+2. the schema-2 tables are created, and columns added since (nullable ones: the job claim's ``owner`` and
+   ``lease_until``) are added to an existing ``jobs`` table;
 3. every row of ``jobs_v1`` and ``analyses`` is inserted into ``jobs`` (SHRM rows get ``kind = "shrm"`` and their
    inputs as the canonical request; analysis rows keep their kind, request and result), then the old table is
    dropped, in the same transaction.
@@ -101,6 +102,21 @@ def _move(conn: Connection, legacy: Table, jobs: Table, convert: Any) -> int:
     return len(rows)
 
 
+def _add_columns(engine: Engine, table: Table) -> None:
+    """Add the nullable columns ``table`` gained since the database was created (schema 2 -> 3: ``owner`` and
+    ``lease_until`` of the job claim); ``create_all`` creates missing tables only."""
+    have = {c["name"] for c in inspect(engine).get_columns(table.name)}
+    missing = [c for c in table.columns if c.name not in have]
+    if not missing:
+        return
+    with engine.begin() as conn:
+        for col in missing:
+            if not col.nullable:
+                raise RuntimeError(f"cannot add the required column {table.name}.{col.name} to an existing table")
+            conn.execute(text(f"ALTER TABLE {table.name} ADD COLUMN {col.name} {col.type.compile(engine.dialect)}"))
+    log.warning("added the columns %s to the table %r", ", ".join(c.name for c in missing), table.name)
+
+
 def migrate(engine: Engine, metadata: MetaData) -> int:
     """Bring the database to the current schema (module docstring); returns the number of rows moved."""
     tables = set(inspect(engine).get_table_names())
@@ -114,6 +130,7 @@ def migrate(engine: Engine, metadata: MetaData) -> int:
         tables = (tables - {"jobs"}) | {"jobs_v1"}
     metadata.create_all(engine)
     jobs = metadata.tables["jobs"]
+    _add_columns(engine, jobs)
     moved = 0
     for legacy, convert in ((JOBS_V1, _from_jobs_v1), (ANALYSES, _from_analyses)):
         if legacy.name in tables:

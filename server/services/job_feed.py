@@ -8,6 +8,11 @@
   ``progress_interval_s``.
 * **Submissions.** Only events of a job's current submission count (:attr:`JobFeed.submission`, set by the
   watcher in :class:`relight.server.services.jobs.JobService`): a superseded submission's events are dropped.
+* **Other servers' jobs.** A job computed by another server on the same database (its claim,
+  :mod:`relight.server.services.job_table`) publishes nothing here: its event streams read the row every
+  ``follow_interval_s`` and send what changed (the owner stores progress at least every ``progress_interval_s``
+  and at every stage change). Streams of this server's own jobs read it only as a safety net (every
+  :data:`LOCAL_RECHECK` intervals).
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from typing import Any
 
 from relight.contract.models import ACTIVE_STATES, JobParams, JobPublic, JobState, Measurement, Prediction
@@ -29,6 +34,9 @@ from relight.server.services.kinds import links_of
 from relight.server.services.metrics import Metrics
 
 log = logging.getLogger("relight.server")
+
+#: A stream of a job this server computes re-reads its row after this many ``follow_interval_s`` without an update.
+LOCAL_RECHECK = 10
 
 
 class JobFeed:
@@ -45,6 +53,8 @@ class JobFeed:
         self._last_store: dict[str, tuple[float, str | None]] = {}
         self._events: asyncio.Queue[Any] = asyncio.Queue()
         self._consumer: asyncio.Task[None] | None = None
+        #: Whether this server computes the job (a watcher of its own runs it); set by the job service.
+        self.local: Callable[[str], bool] = lambda job_id: False
 
     # ------------------------------------------------------------------------------------------------ view
     def public(self, row: Job, *, cached: bool = False) -> JobPublic:
@@ -176,17 +186,34 @@ class JobFeed:
             if current.state.terminal:
                 yield "end", current
                 return
+            last = _seen(current)
             while True:
-                payload = await q.get()
-                if payload is CLOSED:  # the server is stopping: the stream ends without an "end" event
-                    return
-                pub = JobPublic.model_validate(payload)
+                interval = self.settings.follow_interval_s * (LOCAL_RECHECK if self.local(job_id) else 1)
+                try:
+                    payload = await asyncio.wait_for(q.get(), interval)
+                except TimeoutError:  # computed elsewhere (or an update was lost): the row says where it is
+                    row = await self.table.find(job_id)
+                    if row is None:
+                        return
+                    pub = self.public(row)
+                    if _seen(pub) == last:
+                        continue
+                else:
+                    if payload is CLOSED:  # the server is stopping: the stream ends without an "end" event
+                        return
+                    pub = JobPublic.model_validate(payload)
+                last = _seen(pub)
                 yield "job", pub
                 if pub.state.terminal:
                     yield "end", pub
                     return
         finally:
             self.hub.unsubscribe(job_id, q)
+
+
+def _seen(pub: JobPublic) -> tuple[Any, ...]:
+    """What a stream has shown of a job (an update that changes none of it is not sent again)."""
+    return pub.state, pub.stage, pub.progress, pub.runs, pub.submissions, pub.worker
 
 
 __all__ = ["JobFeed"]

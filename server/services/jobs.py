@@ -19,6 +19,12 @@ and resumed here, on one table and under one active-job cap.
   intact (:meth:`JobService.files_intact`, plus a kind's own ``intact`` check); otherwise resubmitting computes it
   again. A file found missing or corrupt when it is served queues the job again and answers 503 with
   ``Retry-After`` (:meth:`JobService.recompute`): a lost result is never served and never "succeeded" for good.
+* **Several servers, one database.** A job is computed only by the server that holds its claim
+  (:class:`relight.server.services.job_table.JobTable`: ``owner`` and ``lease_until``); the creating server
+  claims it with the insert, the others asked for it find it claimed and leave it (their event streams read its
+  row: :meth:`relight.server.services.job_feed.JobFeed.events`). A lease loop renews this server's claims every
+  quarter of ``job_lease_s``, cancels the task of a job cancelled (or taken over) elsewhere, and claims jobs whose
+  lease lapsed (their server died). A clean shutdown releases the claims, so the next server resumes at once.
 
 Job-table writes go through a single writer thread, so they apply in the order they were issued
 (:class:`relight.server.services.job_table.JobTable`, which holds every query of the table).
@@ -51,6 +57,9 @@ from relight.worker.progress import run_job
 
 log = logging.getLogger("relight.server")
 
+#: Claim-and-run passes of one watcher: a second pass runs a job queued again while its previous run was finishing.
+WATCH_PASSES = 3
+
 
 class JobService(JobTable):
     """Submit, watch, cancel and resume jobs of every kind; the table's reads and writes are inherited
@@ -65,6 +74,7 @@ class JobService(JobTable):
         self.feed = JobFeed(settings, self, hub, metrics, envmaps)
         self._watchers: dict[str, asyncio.Task[None]] = {}
         self._futures: dict[str, Any] = {}  # job id -> distributed.Future
+        self._lease_loop: asyncio.Task[None] | None = None
         #: Awaited with the job id when a finished job is queued again (the kinds drop what they cached of it).
         self.on_requeue: list[Callable[[str], Awaitable[None]]] = []
 
@@ -84,6 +94,27 @@ class JobService(JobTable):
 
     def start(self) -> None:
         self.feed.start()
+        self.feed.local = self._watchers.__contains__
+        self._lease_loop = asyncio.create_task(self._leases(), name="relight-job-leases")
+
+    async def _leases(self) -> None:
+        """Every quarter of ``job_lease_s``: renew this server's claims, cancel the tasks of jobs that are no longer
+        its own (cancelled through another server, or claimed by one after a lapse), claim the unclaimed."""
+        while True:
+            await asyncio.sleep(self.settings.job_lease_s / 4)
+            try:
+                mine = await self.renew(list(self._watchers))
+                for job_id, fut in list(self._futures.items()):
+                    if job_id not in mine and not fut.done():
+                        log.warning("job %s is no longer this server's (cancelled or taken over): cancelling its "
+                                    "task", job_id)
+                        await self.cluster.cancel(fut)
+                for job_id in await self.claimable():
+                    self._ensure(job_id)
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - a database hiccup must not end the loop
+                log.warning("renewing job claims: %s", exc)
 
     def events(self, job_id: str) -> AsyncIterator[tuple[str, JobPublic]]:
         """The job's updates as server-sent events (:meth:`JobFeed.events`)."""
@@ -104,7 +135,8 @@ class JobService(JobTable):
         found = await self.find(job_id)
         if found is None:
             new = Job(id=job_id, kind=kind.name, state=JobState.queued.value, stage="queued", progress=0.0,
-                      request=request, predicted=predicted, runs=0, submissions=0, retryable=0)
+                      request=request, predicted=predicted, runs=0, submissions=0, retryable=0,
+                      owner=self.instance, lease_until=self.lease())
             row, created = await self.insert(new)
             if created:
                 self.metrics.inc("jobs_created_total")
@@ -182,7 +214,20 @@ class JobService(JobTable):
             self._watchers[job_id] = asyncio.create_task(self._watch(job_id), name=f"relight-job-{job_id[:12]}")
 
     async def _watch(self, job_id: str) -> None:
+        """Claim the job and run it while it is active and this server's; leave it to its owner otherwise."""
         me = asyncio.current_task()
+        try:
+            for _ in range(WATCH_PASSES):
+                row = await self.claim(job_id)
+                if row is None or row.state not in ACTIVE or row.owner != self.instance:
+                    return
+                await self._run(job_id)
+        finally:
+            if self._watchers.get(job_id) is me:
+                del self._watchers[job_id]
+
+    async def _run(self, job_id: str) -> None:
+        """Submit the claimed job (again while its future is lost) and store its outcome."""
 
         async def submit(attempt: int) -> Any:
             row = await self.mark_submitted(job_id)
@@ -199,9 +244,9 @@ class JobService(JobTable):
             self.metrics.inc("job_submissions_total")
             return fut
 
-        async def wanted() -> bool:  # not cancelled by a user meanwhile
+        async def wanted() -> bool:  # not cancelled by a user (or taken over by another server) meanwhile
             current = await self.find(job_id)
-            return current is not None and current.state in ACTIVE
+            return current is not None and current.state in ACTIVE and current.owner == self.instance
 
         try:
             try:
@@ -216,8 +261,6 @@ class JobService(JobTable):
         finally:
             self._futures.pop(job_id, None)
             self.feed.forget(job_id)
-            if self._watchers.get(job_id) is me:
-                del self._watchers[job_id]
 
     async def _succeed(self, job_id: str, submission: int, result: dict[str, Any]) -> None:
         await faults.apause("before_commit", job_id)  # TEST ONLY: off unless RELIGHT_TEST_FAULT_DIR is set
@@ -269,9 +312,17 @@ class JobService(JobTable):
         consumer = self.feed.stop()
         if consumer is not None:
             watchers.append(consumer)
+        if self._lease_loop is not None:
+            watchers.append(self._lease_loop)
         for t in watchers:
             t.cancel()
         await asyncio.gather(*watchers, return_exceptions=True)
+        try:
+            released = await self.release()  # the next server (or another one) resumes them at once
+            if released:
+                log.info("released the claims on %d unfinished jobs", released)
+        except Exception as exc:  # noqa: BLE001 - the database may be what failed; the leases lapse anyway
+            log.warning("releasing job claims: %s", exc)
         self.close_writer()
 
 

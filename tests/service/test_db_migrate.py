@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from collections.abc import Iterator
 from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
-from sqlalchemy import inspect
+from sqlalchemy import inspect, text
 
 from relight.server.db import Database, Job
 
@@ -141,4 +142,47 @@ def test_an_unmigratable_database_names_the_problem(tmp_path: Path) -> None:
     db = Database(f"sqlite:///{path}")
     with pytest.raises(RuntimeError, match="jobs_v1"):
         db.create_all()
+    db.dispose()
+
+
+@pytest.fixture(scope="module")
+def pg_url() -> Iterator[str]:
+    from .postgres import start_postgres
+
+    db = start_postgres()
+    yield db.url
+    db.stop()
+
+
+@pytest.mark.parametrize("dialect", ["sqlite", "postgresql"])
+def test_a_schema_2_job_table_gains_the_claim_columns(dialect: str, tmp_path: Path,
+                                                      request: pytest.FixtureRequest) -> None:
+    """Schema 2's ``jobs`` had no ``owner`` / ``lease_until`` (the claim of one server among several): they are
+    added at start-up, its rows kept, on SQLite and on PostgreSQL."""
+    url = f"sqlite:///{tmp_path / 'relight.db'}" if dialect == "sqlite" else request.getfixturevalue("pg_url")
+    old = Database(url)
+    old.create_all()
+    with old.engine.begin() as conn:  # schema 2 exactly: the table without the two columns, one row in it
+        conn.execute(text("ALTER TABLE jobs DROP COLUMN owner"))
+        conn.execute(text("ALTER TABLE jobs DROP COLUMN lease_until"))
+        conn.execute(text("INSERT INTO jobs (id, kind, state, request, retryable, runs, submissions, progress, "
+                          "created_at, updated_at) VALUES (:id, 'scene', 'queued', '{}', 0, 0, 0, 0.0, :t, :t)"),
+                     {"id": SCENE_QUEUED, "t": utc(T0)})
+    assert {"owner", "lease_until"}.isdisjoint(c["name"] for c in inspect(old.engine).get_columns("jobs"))
+    old.dispose()
+
+    db = Database(url)
+    assert db.create_all() == 0
+    assert {"owner", "lease_until"} <= {c["name"] for c in inspect(db.engine).get_columns("jobs")}
+    with db.session() as s:
+        row = s.get(Job, SCENE_QUEUED)
+        assert row is not None and row.state == "queued" and row.owner is None and row.lease_until is None
+        row.owner, row.lease_until = "host:1:abc", utc(T1)  # the columns take what the claim writes
+    with db.session() as s:
+        got = s.get(Job, SCENE_QUEUED)
+        assert got is not None and got.owner == "host:1:abc"
+        assert got.lease_until is not None
+        lease = got.lease_until  # naive UTC from SQLite, aware from PostgreSQL
+        assert (lease.replace(tzinfo=UTC) if lease.tzinfo is None else lease.astimezone(UTC)) == utc(T1)
+    db.create_all()  # idempotent
     db.dispose()
