@@ -5,8 +5,10 @@ limit; the scheduler lives in the server process. Whoever can talk to a Dask sch
 so the embedded one speaks TLS with temporary certificates that exist only in the server's memory and its workers'
 (``security=True``: Dask's ``Security.temporary``); its address is not published (``/health``), and the HTTP
 servers Dask starts even with dashboards off are stopped (the scheduler's here, the workers' in
-:mod:`relight.worker.preload`). Scale-out: ``RELIGHT_SCHEDULER=tcp://host:8786`` connects to
-a running scheduler whose workers were started with ``relight worker --scheduler ...``.
+:mod:`relight.worker.preload`). Scale-out: ``RELIGHT_SCHEDULER=tls://host:8786`` connects to
+a running scheduler (``relight scheduler``) whose workers were started with ``relight worker --scheduler ...``,
+with the cluster's certificate (``RELIGHT_TLS_CA_FILE``, ``RELIGHT_TLS_CERT``, ``RELIGHT_TLS_KEY``:
+:mod:`relight.worker.tls`); ``tcp://`` without them, for a trusted network only.
 
 Every function submitted is a task function of ``relight.worker`` (:meth:`Cluster.submit` refuses anything else):
 the workers' entry points live in ``worker/``, thin wrappers over the core where needed.
@@ -56,9 +58,15 @@ class Cluster:
     async def start(self) -> None:
         s = self.settings
         if s.scheduler:
+            from relight.worker.tls import TlsFiles
+
+            tls = TlsFiles.of(s.tls_ca_file, s.tls_cert, s.tls_key)
+            if tls is not None and not s.scheduler.startswith("tls://"):
+                raise ValueError(f"RELIGHT_SCHEDULER must be tls://... with RELIGHT_TLS_* set, not {s.scheduler!r}")
             client: Any = Client
             self._client = await asyncio.wait_for(
-                client(s.scheduler, asynchronous=True, timeout=START_TIMEOUT_S), START_TIMEOUT_S
+                client(s.scheduler, asynchronous=True, timeout=START_TIMEOUT_S,
+                       security=tls.security() if tls is not None else None), START_TIMEOUT_S
             )
         else:
             local: Any = LocalCluster

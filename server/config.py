@@ -23,7 +23,11 @@ class Settings(BaseSettings):
     database_url: str | None = Field(None, description="any SQLAlchemy URL; default SQLite <data_dir>/relight.db")
     blob_dir: Path | None = Field(None, description="blob store root (shared with workers); default <data_dir>/blobs")
 
-    scheduler: str | None = Field(None, description="tcp://host:8786 of an existing Dask scheduler; unset: embedded")
+    scheduler: str | None = Field(None, description="tls://host:8786 (or tcp://) of an existing Dask scheduler; "
+                                  "unset: embedded")
+    tls_ca_file: Path | None = Field(None, description="scale-out: the cluster's CA certificate (relight.worker.tls)")
+    tls_cert: Path | None = Field(None, description="scale-out: this server's certificate for the scheduler")
+    tls_key: Path | None = Field(None, description="scale-out: its private key")
     n_workers: int = Field(2, ge=1, description="embedded cluster: worker processes")
     threads_per_worker: int = Field(1, ge=1)
     worker_memory_limit: str = Field("4GiB", description="embedded cluster: memory limit per worker process")

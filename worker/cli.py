@@ -1,8 +1,14 @@
 """``relight worker``: a Dask worker for an existing scheduler (scale-out), registered through the
 ``relight.commands`` entry point group; ``relight.cli`` loads it.
 
-    relight worker --scheduler tcp://host:8786 [--nthreads N] [--name NAME] [--memory-limit M] [--host H] [--no-nanny]
+    relight worker --scheduler tls://host:8786 [--nthreads N] [--name NAME] [--memory-limit M] [--host H] [--no-nanny]
+                   [--tls-ca-file F --tls-cert F --tls-key F]
+    relight scheduler [--host H] [--port P] [--tls-ca-file F --tls-cert F --tls-key F]
+    relight tls init DIR                         (a self-signed cluster certificate: relight.worker.tls)
     relight store check DATA_DIR [--repair]      (scrub the blob store: relight.worker.store_check)
+
+The TLS flags default to ``RELIGHT_TLS_CA_FILE``, ``RELIGHT_TLS_CERT`` and ``RELIGHT_TLS_KEY``; given, the node
+speaks only TLS (``tls://`` addresses) and accepts only peers with a certificate of that CA.
 
 Importing this module costs nothing beyond argparse: Dask loads when the command runs.
 """
@@ -13,15 +19,57 @@ import argparse
 from typing import Any
 
 
+def _tls(args: argparse.Namespace) -> Any:
+    from relight.worker.tls import TlsFiles
+
+    try:
+        return TlsFiles.of(args.tls_ca_file, args.tls_cert, args.tls_key)
+    except ValueError as exc:
+        raise SystemExit(f"relight {args.command}: {exc}") from None
+
+
 def cmd_worker(args: argparse.Namespace) -> int:
     from relight.worker.run import run_worker
 
+    tls = _tls(args)
     try:
         run_worker(args.scheduler, nthreads=args.nthreads, name=args.name, memory_limit=args.memory_limit,
-                   nanny=not args.no_nanny, host=args.host)
+                   nanny=not args.no_nanny, host=args.host, tls=tls)
     except KeyboardInterrupt:
         return 130
     return 0
+
+
+def cmd_scheduler(args: argparse.Namespace) -> int:
+    from relight.worker.run import run_scheduler
+
+    tls = _tls(args)
+    try:
+        run_scheduler(args.host, args.port, tls)
+    except KeyboardInterrupt:
+        return 130
+    return 0
+
+
+def cmd_tls_init(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from relight.worker.tls import write_certificates
+
+    files = write_certificates(Path(args.dir), days=args.days)
+    print(f"RELIGHT_TLS_CA_FILE={files.ca_file}\nRELIGHT_TLS_CERT={files.cert}\nRELIGHT_TLS_KEY={files.key}")
+    return 0
+
+
+def _tls_flags(p: Any) -> None:
+    import os
+
+    p.add_argument("--tls-ca-file", default=os.environ.get("RELIGHT_TLS_CA_FILE"),
+                   help="CA certificate peers must be signed by (default: $RELIGHT_TLS_CA_FILE)")
+    p.add_argument("--tls-cert", default=os.environ.get("RELIGHT_TLS_CERT"),
+                   help="this node's certificate (default: $RELIGHT_TLS_CERT)")
+    p.add_argument("--tls-key", default=os.environ.get("RELIGHT_TLS_KEY"),
+                   help="this node's private key (default: $RELIGHT_TLS_KEY)")
 
 
 def cmd_store_check(args: argparse.Namespace) -> int:
@@ -50,11 +98,26 @@ def register(sub: Any) -> None:
                           "recomputes what it needs)")
     chk.set_defaults(func=cmd_store_check)
 
-    p = sub.add_parser("worker", help="run a Dask worker for the service (scale-out)")
-    p.add_argument("--scheduler", required=True, help="tcp://host:8786")
+    tls = sub.add_parser("tls", help="TLS certificates of a scaled-out cluster")
+    tls_sub = tls.add_subparsers(dest="tls_command", required=True)
+    init = tls_sub.add_parser("init", help="write a self-signed cluster certificate and key into DIR (kept if "
+                                           "present)")
+    init.add_argument("dir")
+    init.add_argument("--days", type=int, default=3650)
+    init.set_defaults(func=cmd_tls_init)
+
+    sc = sub.add_parser("scheduler", help="run a Dask scheduler for the service (scale-out; no HTTP endpoint)")
+    sc.add_argument("--host", default="0.0.0.0", help="interface to listen on")  # noqa: S104
+    sc.add_argument("--port", type=int, default=8786)
+    _tls_flags(sc)
+    sc.set_defaults(func=cmd_scheduler)
+
+    p = sub.add_parser("worker", help="run a Dask worker for the service (scale-out; no HTTP endpoint)")
+    p.add_argument("--scheduler", required=True, help="tls://host:8786 (tcp://host:8786 without TLS files)")
     p.add_argument("--nthreads", type=int, default=1)
     p.add_argument("--name")
     p.add_argument("--memory-limit", default="auto")
     p.add_argument("--host", default=None, help="interface to listen on (default: Dask's choice)")
     p.add_argument("--no-nanny", action="store_true", help="no supervising nanny (the worker is not restarted)")
+    _tls_flags(p)
     p.set_defaults(func=cmd_worker)

@@ -8,7 +8,8 @@
 * The same wheel, installed in a fresh virtual environment outside the checkout (the ``installed`` fixture of
   :mod:`tests.service.test_wheel_install`), runs as the compose file runs it: a Dask scheduler, two
   ``relight worker`` processes and ``relight serve`` as separate processes against PostgreSQL; upload -> job ->
-  viewer page -> render, the result bit-identical to the library's.
+  viewer page -> render, the result bit-identical to the library's. The Dask nodes speak TLS with a
+  certificate from ``relight tls init``, as in the compose file.
 """
 
 from __future__ import annotations
@@ -75,7 +76,21 @@ def test_compose_commands_and_settings_are_relights() -> None:
         for key in svc.get("environment") or {}:
             if key.startswith("RELIGHT_"):
                 assert key.removeprefix("RELIGHT_").lower() in Settings.model_fields, f"{name}: {key}"
-    assert commands == 2  # the server and the workers
+    assert commands == 4  # the certificate, the scheduler, the workers and the server
+    # The Dask cluster speaks only TLS (issue 12, item 7): the scheduler, the workers and the server's client take
+    # the certificate written by the one-shot certs service, and every address is tls://.
+    assert services["certs"]["command"][3:5] == ["tls", "init"]
+    certs_dir = services["certs"]["command"][5]
+    for name in ("scheduler", "worker", "server"):
+        env = services[name]["environment"]
+        assert {"RELIGHT_TLS_CA_FILE", "RELIGHT_TLS_CERT", "RELIGHT_TLS_KEY"} <= set(env), name
+        assert all(env[k].startswith(certs_dir + "/") for k in env if k.startswith("RELIGHT_TLS_")), name
+        assert f"certs:{certs_dir}:ro" in services[name]["volumes"], name
+        assert services[name]["depends_on"].get("certs", {}).get("condition") == "service_completed_successfully" \
+            or "scheduler" in services[name]["depends_on"], name  # the scheduler waits for certs, the rest for it
+    assert services["scheduler"]["command"][3] == "scheduler"
+    assert services["worker"]["command"][services["worker"]["command"].index("--scheduler") + 1].startswith("tls://")
+    assert services["server"]["environment"]["RELIGHT_SCHEDULER"].startswith("tls://")
     mounts = {name: {v.split(":")[1] for v in svc.get("volumes", []) if v.startswith("blobs:")}
               for name, svc in services.items() if name in ("server", "worker")}
     assert mounts["server"] == mounts["worker"] == {"/data/blobs"}
@@ -133,15 +148,19 @@ def deployment(installed: Path, tmp_path_factory: pytest.TempPathFactory) -> Ite
     port = free_port()
     started: list[Started] = []
     try:
-        python, relight = str(installed / "bin" / "python"), str(installed / "bin" / "relight")
-        sched = launch([python, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port),
-                        "--no-dashboard"], home, env, "scheduler.log")
+        relight = str(installed / "bin" / "relight")
+        # as the compose file does it: the certs service, then every Dask node on TLS with the files from the env
+        out = subprocess.run([relight, "tls", "init", str(home / "certs")], cwd=home, env=env, capture_output=True,
+                             text=True, timeout=120, check=True).stdout
+        env = {**env, **dict(ln.split("=", 1) for ln in out.splitlines() if ln.startswith("RELIGHT_TLS_"))}
+        sched = launch([relight, "scheduler", "--host", "127.0.0.1", "--port", str(port)], home, env,
+                       "scheduler.log")
         started.append(sched)
-        wait_until(lambda: "Scheduler at" in sched.text(), 90, "the scheduler to start")
+        wait_until(lambda: "relight: scheduler at tls://" in sched.text(), 90, "the scheduler to start")
         for i in range(2):
-            started.append(launch([relight, "worker", "--scheduler", f"tcp://127.0.0.1:{port}", "--name", f"w{i}",
+            started.append(launch([relight, "worker", "--scheduler", f"tls://127.0.0.1:{port}", "--name", f"w{i}",
                                    "--host", "127.0.0.1", "--memory-limit", "2GiB"], home, env, f"worker{i}.log"))
-        server_env = {**env, "RELIGHT_SCHEDULER": f"tcp://127.0.0.1:{port}", "RELIGHT_DATABASE_URL": pg.url,
+        server_env = {**env, "RELIGHT_SCHEDULER": f"tls://127.0.0.1:{port}", "RELIGHT_DATABASE_URL": pg.url,
                       "RELIGHT_BLOB_DIR": str(home / "blobs")}
         server = launch([relight, "serve", "--host", "127.0.0.1", "--port", "0", "--data", str(home / "data"),
                          "--no-preload"], home, server_env, "server.log")
@@ -176,7 +195,7 @@ def test_scale_out_from_the_wheel_on_postgres(deployment: str, tmp_path: Path) -
         done = wait_until(lambda: (j := http.get(f"/jobs/{job_id}").json())["state"] in ("succeeded", "failed")
                           and j, 300, "the job", interval=0.2)
         assert done["state"] == "succeeded", done
-        assert done["worker"].startswith("tcp://127.0.0.1:")
+        assert done["worker"].startswith("tls://127.0.0.1:")
         got = read_exr(http.get(f"/shrms/{job_id}/coefficients.exr").content)[""]
         want = library_map(exr, "phong:s=32", epsilon=0.02)
         assert np.array_equal(got.view(np.uint32), want.view(np.uint32))
