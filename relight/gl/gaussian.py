@@ -7,6 +7,7 @@ viewer uses; it evaluates eq. 5, or eq. 7 with per-vertex SH visibility, exactly
 rounded data is the GPU's reference (``tests/relight/test_gl_gaussian.py``).
 
 Textures (the paper's Fig. 3): ``u_lobe_shape`` K x N RGBA16F (mu, sigma), ``u_lobe_weight`` K x N RGBA16F (w),
+both LINEAR and clamped (one filtered lookup per lobe interpolates the elevations),
 ``u_chain`` an RGBA16F 2-D array of the chain's levels, which must share one size (``build_chain(...,
 uniform_size=True)``). Objects: the unit sphere (orthographic, ``relight.shrm.sphere_geometry``'s frame) or a
 ``TriangleMesh`` in the unit ball (indexed, canonical vertex order, with its per-vertex visibility), with
@@ -73,8 +74,9 @@ class GaussianRenderer:
         weight[..., :3] = material.weight
         self.lobe_shape = self.ctx.texture((k, n), 4, np.ascontiguousarray(shape).tobytes(), dtype="f2")
         self.lobe_weight = self.ctx.texture((k, n), 4, np.ascontiguousarray(weight).tobytes(), dtype="f2")
-        for tex in (self.lobe_shape, self.lobe_weight):
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        for tex in (self.lobe_shape, self.lobe_weight):  # the shader interpolates elevations by the sampler
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            tex.repeat_x = tex.repeat_y = False
         h, w = next(iter(sizes))[:2]
         levels = np.zeros((len(chain.levels), h, w, 4), dtype=np.float16)
         for j, lv in enumerate(chain.levels):

@@ -9,9 +9,11 @@
 //   u_elevations   the N elevations theta_o (radians, increasing);
 //   u_chain        the levels G_{sigma_j} * L as one 2-D array (every level the same S x 2S lat-long size),
 //                  LINEAR, REPEAT in u, CLAMP_TO_EDGE in v: relight.conventions.sample_latlong.
-// The texels are fetched exactly (texelFetch) and interpolated linearly in theta_o here, clamped at the end
-// elevations (GaussianLobes.params_at); a lobe's level is x = log(sigma / sigma_0) / log(ratio), clamped to the
-// chain, blended linearly between floor(x) and floor(x) + 1 (relight.gaussian_chain.sample_chain).
+// The lobe textures are LINEAR and CLAMP_TO_EDGE: one lookup per lobe and texture at the texel centre of lobe k
+// across and at texel coordinate j + f along the elevations interpolates linearly in theta_o (the sampler's
+// weights), clamped at the end elevations (GaussianLobes.params_at), with no weight on the neighbouring lobes.
+// A lobe's level is x = log(sigma / sigma_0) / log(ratio), clamped to the chain, blended linearly between floor(x)
+// and floor(x) + 1 (relight.gaussian_chain.sample_chain).
 
 #define VIS_AO 1
 #define VIS_SH 2
@@ -151,15 +153,16 @@ vec3 gaussian_shade(vec3 n, vec3 v) {
     int j;
     float f;
     gaussian_interval(acos(ndv), j, f);
-    int j1 = min(j + 1, GAUSSIAN_N - 1);
+    float row = (float(j) + f + 0.5) / float(GAUSSIAN_N);
     vec3 e = gaussian_axis(n, r);
     vec3 sum = vec3(0.0);
     for (int k = 0; k < GAUSSIAN_K; ++k) {
-        vec3 w = mix(texelFetch(u_lobe_weight, ivec2(k, j), 0).rgb, texelFetch(u_lobe_weight, ivec2(k, j1), 0).rgb, f);
+        vec2 tc = vec2((float(k) + 0.5) / float(GAUSSIAN_K), row);
+        vec3 w = texture(u_lobe_weight, tc).rgb;
         if (max(w.r, max(w.g, w.b)) <= 0.0) {
             continue;
         }
-        vec2 shape = mix(texelFetch(u_lobe_shape, ivec2(k, j), 0).rg, texelFetch(u_lobe_shape, ivec2(k, j1), 0).rg, f);
+        vec2 shape = texture(u_lobe_shape, tc).rg;
         vec3 c = cos(shape.x) * r + sin(shape.x) * e;
         vec3 term = w * gaussian_chain_lookup(c, shape.y);
 #ifdef GAUSSIAN_VISIBILITY

@@ -9,7 +9,7 @@
 // levels, level_JJ.bin = float16 RGB lat-long). The sphere is drawn with web/shaders/gaussian*.glsl (gaussian.js) into
 // a float target, read back as linear radiance and shown through the CPU display transform (tonemap.js).
 // window.relight.gaussian exposes the state for tests: materials, current, edits, pixels(), requests.
-import { bindGaussian, cameraBasis, gaussianDefines, gaussianProgram } from './gaussian.js';
+import { bindGaussian, cameraBasis, gaussianDefines, gaussianProgram, lobeSampling } from './gaussian.js';
 import { floatToHalf, halfToFloat } from './half.js';
 import { tonemapImage } from './tonemap.js';
 
@@ -120,8 +120,7 @@ class GaussianView {
     const gl = this.gl;
     const tex = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D, tex);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    lobeSampling(gl);
     return tex;
   }
 
