@@ -36,8 +36,9 @@ run: $(STAMP) web/node_modules/.installed
 
 # mypy and import-linter read the installed layout (relight.server from server/, ...): tools/pkgview.py links it
 # under build/pkgview. lint-imports checks the layering contracts of pyproject.toml [tool.importlinter].
-# eslint (web/eslint.config.js) lints the viewer and its unit tests.
-lint: $(STAMP) web/node_modules/.installed
+# eslint (web/eslint.config.js) lints the viewer and its unit tests. lint includes typecheck (mypy --strict on every
+# package), so that `make lint` is the whole static check.
+lint: $(STAMP) web/node_modules/.installed typecheck
 	$(BIN)/ruff check relight server worker client contract tests bench tools
 	$(BIN)/python tools/pkgview.py build/pkgview >/dev/null
 	cd build/pkgview && PYTHONPATH=. ../../$(BIN)/lint-imports --no-cache ../../pyproject.toml

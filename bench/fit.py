@@ -36,7 +36,7 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "envmaps"
 def sh_floor(env: np.ndarray, chain: GaussianChain) -> float:
     """The bare transforms the chain cannot avoid, timed alone: one projection at its projection order, one
     synthesis per level at the level's order and size (``relight.sh``, ducc0)."""
-    f_proj = int(chain.report["projection_order"])
+    f_proj = int(chain.report.projection_order or 0)
     t0 = time.perf_counter()
     alm = sh.project(np.asarray(env, dtype=np.float64), f_proj)
     for lv in chain.levels:
@@ -105,7 +105,7 @@ def main() -> None:
         floor = sh_floor(env, ch)
         print(f"chain ratio {rname}: {len(ch.levels)} levels, wall {wall:.2f} s, SH-transform floor {floor:.2f} s "
               f"({wall / floor:.2f}x), {ch.report['timings']}")
-        out[f"chain_{rname}"] = {"levels": len(ch.levels), "wall_s": wall, "timings": ch.report["timings"],
+        out[f"chain_{rname}"] = {"levels": len(ch.levels), "wall_s": wall, "timings": ch.report.timings,
                                  "sh_floor_s": floor, "ratio_to_floor": wall / floor,
                                  "blend_kernel_error": {str(f): blend_kernel_error(ratio, f) for f in (0.25, .5, .75)}}
         print(f"  blend kernel error at 1/4, 1/2, 3/4 level: "

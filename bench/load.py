@@ -36,7 +36,7 @@ import psutil
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from relight.client.sdk import AsyncRelightClient  # noqa: E402
+from relight.client.async_sdk import AsyncRelightClient  # noqa: E402
 from tests.service.support import exr_bytes, make_envmap, start_server  # noqa: E402
 
 EXPENSIVE = {"kind": "torrance-sparrow", "alpha": 0.2, "fresnel": "none"}

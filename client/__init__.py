@@ -13,15 +13,16 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from relight.client.async_sdk import AsyncRelightClient
     from relight.client.errors import ApiError, JobFailed, RelightError, TransportError
-    from relight.client.sdk import AsyncRelightClient, RelightClient
+    from relight.client.sdk import RelightClient
 
 _WHERE = {
     "ApiError": "relight.client.errors",
     "JobFailed": "relight.client.errors",
     "RelightError": "relight.client.errors",
     "TransportError": "relight.client.errors",
-    "AsyncRelightClient": "relight.client.sdk",
+    "AsyncRelightClient": "relight.client.async_sdk",
     "RelightClient": "relight.client.sdk",
 }
 

@@ -152,6 +152,7 @@ def run_item(i: int, path_text: str, fmt: str, out_dir: str, opts: dict[str, Any
 
 
 def cmd_bake(args: argparse.Namespace) -> int:
+    from relight import validate
     from relight.errors import InputError
     from relight.sun import parse_sun
 
@@ -159,8 +160,7 @@ def cmd_bake(args: argparse.Namespace) -> int:
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
         raise InputError(f"--format takes a comma list of {', '.join(FORMATS)}, got {args.format!r}")
-    if not 1 <= args.jobs <= MAX_JOBS:
-        raise InputError(f"-j must lie in [1, {MAX_JOBS}], got {args.jobs}")
+    validate.int_in_range("-j", args.jobs, 1, MAX_JOBS)
     parse_sun(args.sun)
     if args.server:
         remote_exporter()  # a missing client is an argument error, before any item runs

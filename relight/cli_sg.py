@@ -60,8 +60,9 @@ def cmd_chain(args: argparse.Namespace) -> int:
         o = e["orders"]
         print(f"level {j:2d}: sigma {math.degrees(e['sigma']):8.3f} deg  F={o['F_B']:4d}  {e['width']}x{e['height']}"
               f"  App. B bound (relative RMS) {o['rms_appendix_b']:.3g}")
-    print(f"wrote {args.out}/chain.json and {len(man['levels'])} float16 levels in "
-          f"{chain.report['timings']['total']:.3f} s")
+    timings = chain.report.timings
+    assert timings is not None  # build_chain always reports them
+    print(f"wrote {args.out}/chain.json and {len(man['levels'])} float16 levels in {timings['total']:.3f} s")
     return 0
 
 
@@ -93,7 +94,7 @@ def render_gaussian(args: argparse.Namespace) -> int:
     from relight.envmap.exr import write_exr
     from relight.errors import InputError
     from relight.gaussian_chain import read_chain
-    from relight.sg_render import render_mesh_gaussian, render_sphere_gaussian
+    from relight.sg_render import GaussianRenderReport, render_mesh_gaussian, render_sphere_gaussian
 
     if args.fit is None or args.chain is None:
         raise InputError("Gaussian-lobe rendering needs both --fit FIT.json and --chain DIR")
@@ -108,7 +109,7 @@ def render_gaussian(args: argparse.Namespace) -> int:
         raise InputError(f"--fit {args.fit!r} is not a gaussian-lobes material (kind {mat.kind!r})")
     chain = read_chain(args.chain)
     view = np.array(parse_view(args.view))
-    report: dict[str, Any] = {"mode": "none"}
+    report = GaussianRenderReport(object="sphere")
     if args.mesh is None:
         if args.visibility != "none" or args.visibility_data:
             raise InputError("--visibility needs --mesh (the sphere does not shadow itself)")
@@ -132,9 +133,9 @@ def render_gaussian(args: argparse.Namespace) -> int:
         msg += f" and {args.png}"
     print(f"{msg}: {args.size}x{args.size} {what}, view {view.tolist()}, Gaussian lobes (K = {mat.n_lobes}), "
           f"visibility {args.visibility}")
-    if "unclamped_min" in report:
-        print(f"visibility before clamping to [0, 1]: {report['unclamped_min']:.3f} .. {report['unclamped_max']:.3f} "
-              f"({100 * report['clamped_fraction']:.1f} % of lobe lookups clamped)")
+    if report.unclamped_min is not None:
+        print(f"visibility before clamping to [0, 1]: {report.unclamped_min:.3f} .. {report.unclamped_max:.3f} "
+              f"({100 * (report.clamped_fraction or 0.0):.1f} % of lobe lookups clamped)")
     return 0
 
 
@@ -144,8 +145,7 @@ def _vertex_visibility(args: argparse.Namespace, mesh: Any) -> Any:
     from relight.errors import InputError
     from relight.visibility import TransferSettings, compute_transfer
 
-    if not 0 <= args.vis_order <= 8:
-        raise InputError(f"--vis-order must lie in 0..8, got {args.vis_order}")
+    validate.int_in_range("--vis-order", args.vis_order, 0, 8)
     if args.visibility_data:
         with np.load(args.visibility_data) as data:
             if "visibility" not in data:

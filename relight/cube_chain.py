@@ -38,7 +38,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from relight import indexing, sh
+from relight import indexing, sh, validate
 from relight.brdf.base import RadialLobe
 from relight.brdf.coefficients import radial_transfer, spectrum_for_tolerance
 from relight.brdf.splitsum import MIN_ROUGHNESS, GGXSplitSum
@@ -87,8 +87,7 @@ MAX_FACE_SIZE = 4096
 def level_roughness(levels: int, mapping: Mapping, size: int | None = None) -> FloatArray:
     """Perceptual roughness of each mip level 0..levels-1 under an engine's lod mapping (module docstring);
     ``size`` (level 0's face size) is needed by ``log2`` only."""
-    if levels < 1:
-        raise InputError(f"a chain needs at least one level, got {levels}")
+    validate.at_least("levels", levels, 1)
     if mapping == "log2":
         if size is None or size < 1:
             raise InputError(f"the log2 (Babylon) mapping needs the face size of level 0, got {size!r}")
@@ -161,8 +160,7 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
     n_levels = full if levels is None else levels
     if not 1 <= n_levels <= full:
         raise InputError(f"levels must lie in [1, {full}] for size {size}, got {levels}")
-    if not 0.0 < epsilon < 1.0:
-        raise InputError(f"epsilon must lie in (0, 1), got {epsilon}")
+    validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
     pixels = require_rgb_latlong(pixels)
     h = pixels.shape[0]
     f_cap = h - 1

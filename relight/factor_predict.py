@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from relight import validate
 from relight.brdf.base import IsotropicBRDF, Lobe, RadialLobe
 from relight.brdf.coefficients import spectrum_for_tolerance
 from relight.brdf.lobe_cache import lobe_cache
@@ -174,8 +175,7 @@ def terms_for_tolerance(brdf: Any, epsilon: float, *, domain: str = "hemisphere"
 
     from relight.factorization import factorize
 
-    if not 0.0 < epsilon < 1.0:
-        raise InputError(f"epsilon must lie in (0, 1), got {epsilon}")
+    validate.in_range("epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
     tau = 1.0 - float(epsilon)
     t0 = time.perf_counter()
     b = unwrap(brdf)

@@ -31,6 +31,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.factor_kernel import Grid, Kernel, make_grid, make_kernel
 
@@ -117,8 +118,7 @@ class Factorization:
 def terms_for(values: FloatArray, total: float, thresholds: tuple[float, ...] = THRESHOLDS) -> dict[float, int]:
     """Smallest K with ``sum_{k<=K} sigma_k^2 >= tau * total`` for every threshold tau (values descending)."""
     for t in thresholds:
-        if not 0.0 < t < 1.0:
-            raise InputError(f"thresholds must lie in (0, 1), got {t}")
+        validate.in_range("thresholds", t, 0.0, 1.0, lo_open=True, hi_open=True)
     cum = np.cumsum(np.asarray(values, dtype=np.float64) ** 2)
     out: dict[float, int] = {}
     for t in thresholds:

@@ -42,6 +42,7 @@ from relight.brdf.vmf import VonMisesFisher, check_sigma, sigma_to_kappa, vmf_in
 from relight.conventions import require_rgb_latlong
 from relight.errors import InputError
 from relight.prefilter import DEFAULT_EPSILON, MIN_SIZE, choose_orders, project_lighting, size_for_order
+from relight.reports import OMIT_NONE, Report
 
 FloatArray = NDArray[np.float64]
 
@@ -85,12 +86,39 @@ class ChainLevel:
     orders: dict[str, Any]
 
 
+@dataclass(frozen=True, kw_only=True)
+class ChainReport(Report):
+    """What :func:`build_chain` did (the ``report`` of ``chain.json``): the chain's parameters, the projection order,
+    the input's shape, the blend's kernel error per fraction (:func:`blend_kernel_error`) and seconds per stage. Every
+    key is optional (left out while None): a chain read from a manifest without a report, or assembled from stored
+    levels, has none."""
+
+    representation: str | None = field(default=None, metadata=OMIT_NONE)
+    sigma0: float | None = field(default=None, metadata=OMIT_NONE)
+    ratio: float | None = field(default=None, metadata=OMIT_NONE)
+    epsilon: float | None = field(default=None, metadata=OMIT_NONE)
+    sigmas: list[float] | None = field(default=None, metadata=OMIT_NONE)
+    projection_order: int | None = field(default=None, metadata=OMIT_NONE)
+    input: dict[str, int] | None = field(default=None, metadata=OMIT_NONE)
+    blend_kernel_error: dict[str, float] | None = field(default=None, metadata=OMIT_NONE)
+    timings: dict[str, float] | None = field(default=None, metadata=OMIT_NONE)
+    relight_version: str | None = field(default=None, metadata=OMIT_NONE)
+
+    @classmethod
+    def from_json(cls, data: Any) -> ChainReport:
+        """From the JSON form (``chain.json``'s ``report``); unknown keys are ignored, missing ones stay None."""
+        if not isinstance(data, dict):
+            raise TypeError(f"a chain report is a JSON object, got {type(data).__name__}")
+        names = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in data.items() if k in names})
+
+
 @dataclass
 class GaussianChain:
     sigma0: float
     ratio: float
     levels: list[ChainLevel]
-    report: dict[str, Any] = field(default_factory=dict)
+    report: ChainReport = field(default_factory=ChainReport)
 
     @property
     def sigmas(self) -> FloatArray:
@@ -140,19 +168,19 @@ def build_chain(
         synth += time.perf_counter() - ts
         orders = {**dataclasses.asdict(choice.report()), "size": s}
         out.append(ChainLevel(sigma=float(lobe.sigma), map=m, orders=orders))
-    report = {
-        "representation": "gaussian_chain",
-        "sigma0": float(sig[0]),
-        "ratio": float(ratio),
-        "epsilon": float(epsilon),
-        "sigmas": [float(x) for x in sig],
-        "projection_order": int(f_proj),
-        "input": {"height": h, "width": w},
-        "blend_kernel_error": {str(f): blend_kernel_error(ratio, f) for f in (0.25, 0.5, 0.75)},
-        "timings": {"vmf_orders": t1 - t0, "lighting_projection": t2 - t1, "synthesis": synth,
-                    "total": time.perf_counter() - t0},
-        "relight_version": __version__,
-    }
+    report = ChainReport(
+        representation="gaussian_chain",
+        sigma0=float(sig[0]),
+        ratio=float(ratio),
+        epsilon=float(epsilon),
+        sigmas=[float(x) for x in sig],
+        projection_order=int(f_proj),
+        input={"height": h, "width": w},
+        blend_kernel_error={str(f): blend_kernel_error(ratio, f) for f in (0.25, 0.5, 0.75)},
+        timings={"vmf_orders": t1 - t0, "lighting_projection": t2 - t1, "synthesis": synth,
+                 "total": time.perf_counter() - t0},
+        relight_version=__version__,
+    )
     return GaussianChain(sigma0=float(sig[0]), ratio=float(ratio), levels=out, report=report)
 
 
@@ -217,7 +245,7 @@ def write_chain(folder: str | os.PathLike[str], chain: GaussianChain) -> dict[st
                         "width": int(lv.map.shape[1]), "orders": lv.orders})
     man = {"format": "relight-gaussian-chain", "version": 1, "dtype": "float16", "layout": "latlong",
            "sigma0": chain.sigma0, "ratio": chain.ratio, "levels": entries, "half_clamped": clamped,
-           "report": chain.report}
+           "report": chain.report.to_json()}
     (d / MANIFEST).write_text(json.dumps(man, indent=2))
     return man
 
@@ -236,7 +264,7 @@ def read_chain(folder: str | os.PathLike[str]) -> GaussianChain:
         levels = [ChainLevel(sigma=float(e["sigma"]), map=read_image(d / str(e["file"]))[0].astype(np.float32),
                              orders=dict(e.get("orders", {}))) for e in entries]
         chain = GaussianChain(sigma0=float(man["sigma0"]), ratio=float(man["ratio"]), levels=levels,
-                              report=dict(man.get("report", {})))
+                              report=ChainReport.from_json(man.get("report", {})))
     except (KeyError, TypeError, ValueError, json.JSONDecodeError) as exc:
         raise InputError(f"chain: {p} is not a valid chain manifest ({exc})") from None
     if not levels:

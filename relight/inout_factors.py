@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.factor_kernel import Kernel, make_grid, make_kernel
 from relight.factorization import terms_for
@@ -142,8 +143,7 @@ def build_factors(brdf: Any, *, terms: int | None = None, energy: float = 0.99, 
     """The leading in-out factors of an isotropic ``brdf`` (any relight BRDF the block SVD accepts) over the
     hemisphere: ``terms`` of them (rounded up to whole pairs; 0: every term of the grid), or as many as capture
     ``energy`` of the kernel's energy (the paper's 99 % by default; refused above :data:`MAX_TERMS`)."""
-    if not 0.0 < energy < 1.0:
-        raise InputError(f"energy must lie in (0, 1), got {energy}")
+    validate.in_range("energy", energy, 0.0, 1.0, lo_open=True, hi_open=True)
     if terms is not None and (isinstance(terms, bool) or not isinstance(terms, int) or terms < 0):
         raise InputError(f"terms must be a non-negative integer, got {terms!r}")
     n_p = 2 * n_theta if n_phi is None else n_phi

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 
 IDENTIFIER = bytes([0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A])
@@ -90,8 +91,7 @@ def _encode(arr: NDArray[np.floating], vk_format: int) -> bytes:
     if vk_format == VK_FORMAT_R16G16B16A16_SFLOAT:
         half, _ = to_half_rgba(arr)
         return bytes(half.astype("<f2").tobytes())
-    if not np.all(np.isfinite(arr)):
-        raise InputError("cube faces hold non-finite values")
+    validate.finite_array("cube faces", arr)
     pack = (packed_float.pack_b10g11r11 if vk_format == VK_FORMAT_B10G11R11_UFLOAT_PACK32
             else packed_float.pack_e5b9g9r9)
     return bytes(pack(arr).astype("<u4").tobytes())
@@ -111,8 +111,7 @@ def to_half_rgba(faces: NDArray[np.floating]) -> tuple[NDArray[np.float16], int]
     """(..., 3) linear RGB to (..., 4) float16 with alpha 1, clamping to the finite half range; also the count of
     clamped values (a float16 texel cannot hold more than 65504)."""
     rgb = np.asarray(faces, dtype=np.float64)
-    if not np.all(np.isfinite(rgb)):
-        raise InputError("cube faces hold non-finite values")
+    validate.finite_array("cube faces", rgb)
     clamped = int(np.count_nonzero(np.abs(rgb) > HALF_MAX))
     out = np.ones(rgb.shape[:-1] + (4,), dtype=np.float16)
     out[..., :3] = np.clip(rgb, -HALF_MAX, HALF_MAX).astype(np.float16)

@@ -26,17 +26,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.conventions import luminance
 from relight.errors import InputError, RelightError
 from relight.mesh.model import TriangleMesh
-from relight.mitsuba_twin import (
-    block_mean,
-    camera_up,
-    check_bitmap_shape,
-    mitsuba_bitmap,
-    mitsuba_module,
-    texels_per_pixel,
-)
+from relight.mitsuba_compare import block_mean
+from relight.mitsuba_twin import camera_up, check_bitmap_shape, mitsuba_bitmap, mitsuba_module, texels_per_pixel
 
 FloatArray = NDArray[np.float64]
 
@@ -110,8 +105,7 @@ def render_mesh_mitsuba(mesh: TriangleMesh, pixels: NDArray[np.floating], *, vie
     reason = check_bitmap_shape(p.shape)
     if reason is not None:
         raise InputError(reason)
-    if max_depth < 2:
-        raise InputError(f"max_depth must be >= 2 (direct light), got {max_depth}")
+    validate.at_least("max_depth (2 = direct light)", max_depth, 2)
     v = np.asarray(view, dtype=np.float64) / np.linalg.norm(view)
     bitmap = mitsuba_bitmap(p, texels_per_pixel(p.shape[1], texels))
     with tempfile.TemporaryDirectory() as tmp:

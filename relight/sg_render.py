@@ -15,18 +15,20 @@ the unit sphere with the camera of ``relight.shrm.sphere_geometry`` (the one
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.gaussian_lobes import GaussianLobes, lobe_centres
 from relight.errors import InputError
 from relight.gaussian_chain import GaussianChain, sample_chain
 from relight.mesh.model import TriangleMesh
 from relight.raycast import RayCaster
+from relight.reports import OMIT_NONE, Report
 
 FloatArray = NDArray[np.float64]
 
@@ -74,11 +76,11 @@ def render_sphere_gaussian(material: GaussianLobes, chain: GaussianChain,
                            supersample: int = 1) -> FloatArray:
     """The unit sphere (size, size, 3) seen along -V, like ``relight.shrm.render_sphere``; each pixel the mean of
     ``supersample^2`` sub-pixels (Mitsuba's box filter). Off the sphere: 0."""
-    from relight.mitsuba_twin import block_mean
+    from relight.mitsuba_compare import block_mean
     from relight.shrm import sphere_geometry, unit_view
 
-    if size < 1 or supersample < 1:
-        raise InputError(f"size and supersample must be >= 1, got {size} and {supersample}")
+    validate.at_least("size", size, 1)
+    validate.at_least("supersample", supersample, 1)
     v = unit_view(view)
     nrm, mask = sphere_geometry(v, size * supersample)
     img = np.zeros(mask.shape + (3,))
@@ -86,11 +88,26 @@ def render_sphere_gaussian(material: GaussianLobes, chain: GaussianChain,
     return block_mean(img, supersample)
 
 
+@dataclass(frozen=True, kw_only=True)
+class GaussianRenderReport(Report):
+    """What a Gaussian-lobe render drew: the object (``sphere`` or ``mesh``, with the mesh's vertex count), the
+    visibility mode and the surface points shaded; with visibility, the range of the per-lobe values before the clamp
+    to [0, 1] and the fraction of lobe lookups clamped. Optional keys are left out of the JSON form while None."""
+
+    object: str = "mesh"
+    mode: str = "none"
+    vertices: int | None = field(default=None, metadata=OMIT_NONE)
+    points: int | None = field(default=None, metadata=OMIT_NONE)
+    unclamped_min: float | None = field(default=None, metadata=OMIT_NONE)
+    unclamped_max: float | None = field(default=None, metadata=OMIT_NONE)
+    clamped_fraction: float | None = field(default=None, metadata=OMIT_NONE)
+
+
 def render_mesh_gaussian(material: GaussianLobes, chain: GaussianChain, mesh: TriangleMesh,
                          view: NDArray[np.floating] | Sequence[float], size: int, *, supersample: int = 2,
                          visibility: NDArray[np.floating] | None = None, mode: str = "none",
                          order: int | None = None, caster: RayCaster | None = None
-                         ) -> tuple[FloatArray, dict[str, Any]]:
+                         ) -> tuple[FloatArray, GaussianRenderReport]:
     """A mesh (already in the unit ball) with the camera of ``relight.mesh_render`` (Mitsuba's), eq. 5 or, with
     per-vertex SH ``visibility`` (V, (F+1)^2) and ``mode`` in ``relight.sg_shadow.MODES``, eq. 7: the coefficients
     interpolated with each hit's barycentrics, evaluated per lobe, clamped to [0, 1]. Returns the (size, size, 3)
@@ -98,13 +115,13 @@ def render_mesh_gaussian(material: GaussianLobes, chain: GaussianChain, mesh: Tr
     from relight.mesh_render import interpolate, surface_samples
     from relight.sg_shadow import lobe_visibility
 
-    if size < 1 or supersample < 1:
-        raise InputError(f"size and supersample must be >= 1, got {size} and {supersample}")
+    validate.at_least("size", size, 1)
+    validate.at_least("supersample", supersample, 1)
     v = np.asarray(view, dtype=np.float64)
     v = v / np.linalg.norm(v)
     samples = surface_samples(mesh, v, size, supersample, caster)
     terms = lobe_terms(material, chain, samples.normals, v)
-    report: dict[str, Any] = {"mode": mode, "points": int(samples.normals.shape[0])}
+    report = GaussianRenderReport(mode=mode, points=int(samples.normals.shape[0]))
     if mode == "none":
         vis = np.ones(terms.sigma.shape)
     else:
@@ -113,8 +130,9 @@ def render_mesh_gaussian(material: GaussianLobes, chain: GaussianChain, mesh: Tr
         coeffs = interpolate(samples, mesh, np.asarray(visibility, dtype=np.float64))
         vis, raw = lobe_visibility(coeffs, terms.centres, terms.sigma, mode, order)
         live = terms.weight.sum(axis=2) > 0.0
-        report.update(unclamped_min=float(raw[live].min(initial=np.inf)),
-                      unclamped_max=float(raw[live].max(initial=-np.inf)),
-                      clamped_fraction=float(np.mean((raw[live] < 0.0) | (raw[live] > 1.0))) if live.any() else 0.0)
+        report = dataclasses.replace(
+            report, unclamped_min=float(raw[live].min(initial=np.inf)),
+            unclamped_max=float(raw[live].max(initial=-np.inf)),
+            clamped_fraction=float(np.mean((raw[live] < 0.0) | (raw[live] > 1.0))) if live.any() else 0.0)
     rgb = np.einsum("pk,pkc,pkc->pc", vis, terms.weight, terms.radiance)
     return samples.image(rgb), report

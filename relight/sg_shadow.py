@@ -29,6 +29,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.vmf import sigma_to_kappa
 from relight.errors import InputError
 from relight.shrm import Y00
@@ -80,8 +81,7 @@ def lobe_visibility(coefficients: NDArray[np.floating], centres: NDArray[np.floa
     if v.ndim != 2 or v.shape[0] != p:
         raise InputError(f"visibility coefficients must be ({p}, (F+1)^2), got {v.shape}")
     f = order_of(v) if order is None else int(order)
-    if not 0 <= f <= order_of(v):
-        raise InputError(f"visibility order must lie in 0..{order_of(v)}, got {order}")
+    validate.int_in_range("visibility order", f, 0, order_of(v))
     v = v[:, : (f + 1) ** 2]
     if mode == "ao":
         raw = np.repeat(2.0 * Y00 * v[:, :1], k, axis=1)

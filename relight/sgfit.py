@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.base import Lobe
 from relight.brdf.gaussian_lobes import GaussianLobes
 from relight.brdf.models import SumBRDF
@@ -82,14 +83,11 @@ class FitSettings:
     max_inserted: int = MAX_INSERTED
 
     def check(self) -> None:
-        if not 1 <= self.lobes <= 8:
-            raise InputError(f"fit: lobes must lie in [1, 8], got {self.lobes}")
-        if not 2 <= self.elevations <= 64:
-            raise InputError(f"fit: elevations must lie in [2, 64], got {self.elevations}")
+        validate.int_in_range("fit: lobes", self.lobes, 1, 8)
+        validate.int_in_range("fit: elevations", self.elevations, 2, 64)
         if not (math.isfinite(self.theta_max) and 0.0 < self.theta_max < math.pi / 2):
             raise InputError(f"fit: theta_max must lie in (0, pi/2) radians, got {self.theta_max!r}")
-        if not 0 <= self.max_inserted <= 64:
-            raise InputError(f"fit: max_inserted must lie in [0, 64], got {self.max_inserted}")
+        validate.int_in_range("fit: max_inserted", self.max_inserted, 0, 64)
         ml = self.lobes if self.max_lobes is None else self.max_lobes
         if not self.lobes <= ml <= 8:
             raise InputError(f"fit: max_lobes must lie in [lobes, 8], got {self.max_lobes}")

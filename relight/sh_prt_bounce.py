@@ -32,6 +32,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.mesh.model import TriangleMesh
 from relight.raycast import RayCaster, ray_offset
@@ -60,8 +61,7 @@ class BounceSettings:
     def __post_init__(self) -> None:
         if not 16 <= self.rays <= 1 << 16:
             raise InputError(f"rays per point must lie in 16..65536, got {self.rays}")
-        if not 0 <= self.bounces <= MAX_BOUNCES:
-            raise InputError(f"bounces must lie in 0..{MAX_BOUNCES}, got {self.bounces}")
+        validate.int_in_range("bounces", self.bounces, 0, MAX_BOUNCES)
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from relight import sh
+from relight import sh, validate
 from relight.brdf.coefficients import window_factors
 from relight.errors import InputError
 from relight.sh_rotation import SH_FROM_WORLD, band_rotations, local_rotations, rotate_coefficients
@@ -156,8 +156,8 @@ def render_sphere(table: SHTable, lighting: ArrayLike, view: ArrayLike, size: in
     """CPU image (size, size, 3) of the unit sphere of ``relight.shrm.sphere_geometry`` (Mitsuba's orthographic
     camera) shaded by the table; ``supersample`` x ``supersample`` samples per pixel, averaged."""
     v = unit_view(np.asarray(view, dtype=np.float64))
-    if size < 1 or supersample < 1:
-        raise InputError(f"size and supersample must be >= 1, got {size}, {supersample}")
+    validate.at_least("size", size, 1)
+    validate.at_least("supersample", supersample, 1)
     big = size * supersample
     n, mask = sphere_geometry(v, big)
     img = np.zeros((big, big, 3))

@@ -145,5 +145,5 @@ def compute_gaussian_chain(ctx: JobContext, request: dict[str, Any]) -> dict[str
                        "width": int(lv.map.shape[1]), "orders": lv.orders})
     return {"sigma0": chain.sigma0, "ratio": chain.ratio, "levels": levels, "half_clamped": clamped,
             "layout": "level_JJ.bin: float16 RGB lat-long, H x 2H x 3, row 0 = +Y",
-            "timings": chain.report["timings"], "blend_kernel_error": chain.report["blend_kernel_error"],
+            "timings": chain.report.timings, "blend_kernel_error": chain.report.blend_kernel_error,
             "task_seconds": time.perf_counter() - t0, "files": files}

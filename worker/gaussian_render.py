@@ -8,12 +8,16 @@ in a worker process because it reads the chain's float16 levels and the mesh fro
 
 from __future__ import annotations
 
-from typing import Any
+import dataclasses
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from relight.worker.blobs import BlobStore
+
+if TYPE_CHECKING:
+    from relight.sg_render import GaussianRenderReport
 
 
 def chain_from_result(store: BlobStore, result: dict[str, Any]) -> Any:
@@ -31,13 +35,13 @@ def chain_from_result(store: BlobStore, result: dict[str, Any]) -> Any:
 
 def gaussian_image(store_root: str, material_spec: dict[str, Any], chain_result: dict[str, Any], view: list[float],
                    size: int, *, geometry: dict[str, Any] | None = None, visibility_npz: str | None = None,
-                   mode: str = "none", supersample: int = 2) -> tuple[NDArray[np.float32], dict[str, Any]]:
-    """(size, size, 3) float32 image and a report (mode, unclamped visibility range, vertices)."""
+                   mode: str = "none", supersample: int = 2) -> tuple[NDArray[np.float32], GaussianRenderReport]:
+    """(size, size, 3) float32 image and its report (mode, unclamped visibility range, vertices)."""
     import io
 
     from relight.brdf.spec import parse_brdf
     from relight.mesh import geometry as geom
-    from relight.sg_render import render_mesh_gaussian, render_sphere_gaussian
+    from relight.sg_render import GaussianRenderReport, render_mesh_gaussian, render_sphere_gaussian
 
     store = BlobStore(store_root)
     material = parse_brdf(material_spec)
@@ -45,7 +49,7 @@ def gaussian_image(store_root: str, material_spec: dict[str, Any], chain_result:
     v = np.asarray(view, dtype=np.float64)
     if geometry is None:
         image = render_sphere_gaussian(material, chain, v, size, supersample=supersample)  # type: ignore[arg-type]
-        return np.asarray(image, dtype=np.float32), {"object": "sphere", "mode": "none"}
+        return np.asarray(image, dtype=np.float32), GaussianRenderReport(object="sphere")
     mesh = geom.from_bytes(store.read(geometry["sha256"]), int(geometry["vertices"]), int(geometry["faces"]),
                            source=f"geometry {geometry['sha256']}").normalised()
     vis = None
@@ -56,4 +60,4 @@ def gaussian_image(store_root: str, material_spec: dict[str, Any], chain_result:
             vis = np.asarray(npz["visibility"], dtype=np.float64)
     image, report = render_mesh_gaussian(material, chain, mesh, v, size,  # type: ignore[arg-type]
                                          supersample=supersample, visibility=vis, mode=mode)
-    return np.asarray(image, dtype=np.float32), {"object": "mesh", "vertices": mesh.n_vertices, **report}
+    return np.asarray(image, dtype=np.float32), dataclasses.replace(report, vertices=mesh.n_vertices)

@@ -43,16 +43,17 @@ def prefilter(
     report("writing", 0.9)
     layers = shrm_layers(shrm)
     man = strip_volatile(manifest(shrm))
-    predicted = dict(shrm.report.get("predicted") or {})
+    typed = shrm.typed_report
+    predicted = typed.predicted
     comps = shrm.components
-    f_l = (comps[0].report.get("orders") or {}).get("F_L")
+    f_l = typed.components[0].orders.get("F_L")
     orders = {
         "F_B": max(c.F for c in comps), "P_B": max(c.P for c in comps), "F_L": f_l,
-        "rms_min_of_errors": predicted.get("rms_min_of_errors"), "rms_appendix_b": predicted.get("rms_appendix_b"),
+        "rms_min_of_errors": predicted.rms_min_of_errors, "rms_appendix_b": predicted.rms_appendix_b,
         "components": [{"center": c.center, "structure": c.structure, "F_B": c.F, "P_B": c.P,
                         "maps": len(c.terms)} for c in comps],
     }
-    core_report = {**shrm.report, "orders": orders, "center": comps[0].center if len(comps) == 1 else None}
+    core_report = {**typed.to_json(), "orders": orders, "center": comps[0].center if len(comps) == 1 else None}
     return layers, "shrm", core_report, {ATTRIBUTE: json.dumps(man, sort_keys=True)}
 
 

@@ -257,13 +257,13 @@ def calibrate(*, repeat: int = 3, quick: bool = False, seed: int = 0) -> Calibra
         for _ in range(repeat):
             lobe_cache.clear()
             shrm_obj = create_shrm(px, brdf, order=f, p_order=p, epsilon=eps, size=s)
-            stages = report_stages(shrm_obj.report["timings"])
+            stages = report_stages(shrm_obj.typed_report.timings)
             stages["view"], _ = _best(functools.partial(reflect, shrm_obj, view), 1)  # fresh: eq. 8 included
             reps.append(stages)
         assert shrm_obj is not None
         stages = _stage_min(reps)
         _eval_cache_put(micro, per_eval)
-        feats = shrm_report_features(brdf, shrm_obj.report, height=h, width=2 * h, views=1)
+        feats = shrm_report_features(brdf, shrm_obj.typed_report, height=h, width=2 * h, views=1)
         record("create_shrm+view", feats, stages)
 
     for h, s, expo in CAL_ANGULAR[:2] if quick else CAL_ANGULAR:

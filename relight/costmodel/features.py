@@ -12,7 +12,7 @@ from typing import Any
 
 from relight.brdf.base import Lobe
 from relight.costmodel.timing import lobe_eval_seconds
-from relight.reports import PrefilterReport
+from relight.reports import PrefilterReport, ShrmReport
 
 #: Features of each stage (module docstring). Stage names match the ``timings`` of the prefilter reports.
 STAGES: dict[str, tuple[str, ...]] = {
@@ -248,24 +248,24 @@ def prefilter_report_features(lobe: Lobe, report: PrefilterReport, *, height: in
                            explicit=explicit)
 
 
-def shrm_lobe_plans(brdf: Any, report: Mapping[str, Any]) -> list[LobePlan]:
+def shrm_lobe_plans(brdf: Any, report: ShrmReport) -> list[LobePlan]:
     """:class:`LobePlan` per component of a finished ``create_shrm`` run (orders and the search's probes)."""
     from relight.shrm import brdf_lobes
 
     plans = []
-    for lobe, c in zip(brdf_lobes(brdf), report["components"], strict=True):
-        o = c["orders"]
-        probes = tuple((int(q["F"]), int(q["P"])) for q in c.get("probes") or [])
-        plans.append(LobePlan(lobe=lobe, structure=str(c["structure"]), f_rho=int(o["F_rho"]), f_b=int(o["F_B"]),
+    for lobe, c in zip(brdf_lobes(brdf), report.components, strict=True):
+        o = c.orders
+        probes = tuple((int(q["F"]), int(q["P"])) for q in c.probes or [])
+        plans.append(LobePlan(lobe=lobe, structure=str(c.structure), f_rho=int(o["F_rho"]), f_b=int(o["F_B"]),
                               p_b=int(o["P_B"]), explicit=bool(o.get("explicit")), probes=probes or None))
     return plans
 
 
 def shrm_report_features(
-    brdf: Any, report: Mapping[str, Any], *, height: int, width: int, views: int = 0
+    brdf: Any, report: ShrmReport, *, height: int, width: int, views: int = 0
 ) -> dict[str, float]:
     """Features of a finished ``create_shrm`` run (plus ``views`` eq. 12 maps) from its report."""
     plans = shrm_lobe_plans(brdf, report)
     f_proj = min(max(p.f_rho for p in plans), height - 1)
-    size = int(report["output"]["height"])
+    size = int(report.output["height"])
     return shrm_features(plans, height=height, width=width, f_proj=f_proj, size=size, views=views)

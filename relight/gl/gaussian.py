@@ -24,17 +24,21 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.brdf.gaussian_lobes import GaussianLobes
 from relight.errors import InputError
 from relight.gaussian_chain import ChainLevel, GaussianChain
 from relight.gl import shaders
 from relight.gl.render import camera_basis, create_context, view_projection
+from relight.gl.targets import MESH_LAYOUT, float_target, read_image, set_uniform, vertex_array
 from relight.mesh.model import TriangleMesh
 
 #: Visibility modes as the shader's VIS_MODE (relight.sg_shadow.MODES; "none" compiles no visibility).
 VIS_MODES: Final = {"ao": 1, "sh": 2, "sh-lobe": 3}
 #: Coefficients per vertex in the attributes (order 3, the paper's 16).
 VIS_COEFFICIENTS: Final = 16
+#: :meth:`GaussianRenderer.mesh_buffers`' interleaved vertex: position, normal, 16 visibility floats.
+_MESH_LAYOUT: Final = (*MESH_LAYOUT, *((f"a_visibility{i}", 4) for i in range(4)))
 _FULLSCREEN: Final = np.array([-1.0, -1.0, 0.0, 3.0, -1.0, 0.0, -1.0, 3.0, 0.0], dtype="<f4")
 
 
@@ -105,8 +109,7 @@ class GaussianRenderer:
         if mode != "none":
             if mode not in VIS_MODES:
                 raise InputError(f"unknown visibility mode {mode!r}; expected none or one of {', '.join(VIS_MODES)}")
-            if not 0 <= order <= 3:
-                raise InputError(f"GL visibility order must lie in 0..3 (16 coefficients), got {order}")
+            validate.int_in_range("GL visibility order (16 coefficients)", order, 0, 3)
             out.update(GAUSSIAN_VISIBILITY=None, VIS_MODE=VIS_MODES[mode], SH_ORDER=int(order))
         return out
 
@@ -143,8 +146,7 @@ class GaussianRenderer:
         if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0.0:
             raise InputError(f"view must be a non-zero 3-vector, got {np.asarray(view).tolist()}")
         v = v / np.linalg.norm(v)
-        if not 1 <= size <= 4096:
-            raise InputError(f"size must be in 1..4096, got {size}")
+        validate.int_in_range("size", size, 1, 4096)
         obj = "sphere" if mesh is None else "mesh"
         if obj == "sphere" and mode != "none":
             raise InputError("visibility needs a mesh (the sphere does not shadow itself)")
@@ -161,49 +163,24 @@ class GaussianRenderer:
             "u_view_projection": tuple(view_projection(v, "orthographic", 3.0).T.ravel()),
         }
         for name, value in values.items():
-            _set(prog, name, value)
+            set_uniform(prog, name, value)
         if mesh is None:
             vao = self.ctx.vertex_array(prog, [(self._quad, "3f", "a_position")])
         else:
             vbo, ibo = mesh
-            names, parts = [], []
-            for name, width in [("a_position", 3), ("a_normal", 3)] + [(f"a_visibility{i}", 4) for i in range(4)]:
-                if prog.get(name, None) is None:  # not compiled in, or optimised away (AO reads only the DC term)
-                    parts.append(f"{4 * width}x")
-                else:
-                    names.append(name)
-                    parts.append(f"{width}f")
-            fmt = " ".join(parts)
-            vao = self.ctx.vertex_array(prog, [(vbo, fmt, *names)], index_buffer=ibo, index_element_size=4)
+            # visibility attributes not compiled in, or optimised away (AO reads only the DC term), are padding
+            vao = vertex_array(self.ctx, prog, vbo, _MESH_LAYOUT, ibo)
         self.lobe_shape.use(location=0)
         self.lobe_weight.use(location=1)
         self.chain_tex.use(location=2)
-        color = self.ctx.texture((size, size), 4, dtype="f4")
-        depth = self.ctx.depth_renderbuffer((size, size))
-        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         try:
-            fbo.use()
-            fbo.viewport = (0, 0, size, size)
-            for _ in range(max(1, frames)):
-                fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-                self.ctx.enable(moderngl.DEPTH_TEST)
-                self.ctx.disable(moderngl.CULL_FACE)
-                vao.render(moderngl.TRIANGLES, vertices=3 if mesh is None else -1)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+            with float_target(self.ctx, size, size, depth=True) as fbo:
+                for _ in range(max(1, frames)):
+                    fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+                    self.ctx.enable(moderngl.DEPTH_TEST)
+                    self.ctx.disable(moderngl.CULL_FACE)
+                    vao.render(moderngl.TRIANGLES, vertices=3 if mesh is None else -1)
+                return read_image(fbo)
         finally:
-            fbo.release()
-            color.release()
-            depth.release()
             vao.release()
-        return np.ascontiguousarray(raw[::-1, :, :3])
 
-
-def _set(prog: Any, name: str, value: Any) -> None:
-    """Set a uniform if the linker kept it (unused uniforms are optimised away)."""
-    try:
-        member = prog[name]
-    except KeyError:
-        return
-    if isinstance(value, list) and getattr(member, "array_length", 0) == 1:
-        value = value[0]
-    member.value = value

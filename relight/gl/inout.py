@@ -15,10 +15,22 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.gl import shaders
-from relight.gl.prt import PROBE_WIDTH, _set, model_matrix
+from relight.gl.prt import model_matrix
 from relight.gl.render import ORTHO_DISTANCE, create_context, view_projection
+from relight.gl.targets import (
+    MESH_LAYOUT,
+    POINT_WIDTH,
+    float_target,
+    mesh_buffers,
+    point_rows,
+    read_image,
+    read_points,
+    set_uniform,
+    vertex_array,
+)
 from relight.inout_factors import InOutFactors
 from relight.mesh.model import TriangleMesh
 from relight.vertex_texture import pack_float16
@@ -44,9 +56,7 @@ class InOutRenderer:
             raise InputError(f"the transport's last axis must be (F+1)^2 long, got {t.shape[2]}")
         self.mesh, self.factors, self.order = mesh, factors, order
         self.ctx = ctx if ctx is not None else create_context()
-        inter = np.concatenate([mesh.positions, mesh.normals], axis=1).astype("<f4")
-        self.vbo = self.ctx.buffer(inter.tobytes())
-        self.ibo = self.ctx.buffer(np.ascontiguousarray(mesh.faces, dtype="<u4").tobytes())
+        self.vbo, self.ibo = mesh_buffers(self.ctx, mesh)
         tex, lay = pack_float16(t)
         #: the transport as uploaded (float16-rounded), for CPU references
         self.uploaded = np.asarray(tex, dtype=np.float64).reshape(-1, 4)[: mesh.n_vertices * lay["texels_per_vertex"]]
@@ -85,72 +95,48 @@ class InOutRenderer:
         if light.ndim != 2 or light.shape[0] < n or light.shape[1] != 3:
             raise InputError(f"lighting must be (>= {n}, 3) real coefficients, got shape {light.shape}")
         v = np.asarray(view, dtype=np.float64)
-        _set(prog, "u_light", [tuple(float(x) for x in row) for row in light[:n]])
-        _set(prog, "u_view", tuple(float(x) for x in v / np.linalg.norm(v)))
-        _set(prog, "u_eye", (0.0, 0.0, 0.0, 0.0))
-        _set(prog, "u_transport", 0)
-        _set(prog, "u_factors", 1)
+        set_uniform(prog, "u_light", [tuple(float(x) for x in row) for row in light[:n]])
+        set_uniform(prog, "u_view", tuple(float(x) for x in v / np.linalg.norm(v)))
+        set_uniform(prog, "u_eye", (0.0, 0.0, 0.0, 0.0))
+        set_uniform(prog, "u_transport", 0)
+        set_uniform(prog, "u_factors", 1)
         self.transport.use(location=0)
         self.factor_tex.use(location=1)
 
     def _vao(self, prog: Any, indexed: bool) -> Any:
-        used = [nm for nm in ("a_position", "a_normal") if prog.get(nm, None) is not None]
-        fmt = " ".join("3f" if nm in used else "12x" for nm in ("a_position", "a_normal"))
-        content = [(self.vbo, fmt, *used)] if used else []
-        if indexed:
-            return self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
-        return self.ctx.vertex_array(prog, content)
+        return vertex_array(self.ctx, prog, self.vbo, MESH_LAYOUT, self.ibo if indexed else None)
 
     def probe(self, lighting: ArrayLike, view: ArrayLike, terms: int | None = None) -> NDArray[np.float32]:
         """Every vertex's radiance (V, 3) through the vertex shader, summing the first ``terms`` terms (one point
         per vertex; tests)."""
-        import moderngl
-
         prog = self.program(probe=True, terms=terms)
         self._uniforms(prog, lighting, view)
-        rows = max(1, -(-self.mesh.n_vertices // PROBE_WIDTH))
-        _set(prog, "u_output_size", (PROBE_WIDTH, rows))
-        tex = self.ctx.texture((PROBE_WIDTH, rows), 4, dtype="f4")
-        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        n = self.mesh.n_vertices
+        set_uniform(prog, "u_output_size", (POINT_WIDTH, point_rows(n)))
         vao = self._vao(prog, indexed=False)
         try:
-            fbo.use()
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-            vao.render(moderngl.POINTS, vertices=self.mesh.n_vertices)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(-1, 4)
+            return read_points(self.ctx, vao, n, vertices=n)
         finally:
             vao.release()
-            fbo.release()
-            tex.release()
-        return np.asarray(raw[: self.mesh.n_vertices, :3])
 
     def draw(self, lighting: ArrayLike, view: ArrayLike, size: int) -> NDArray[np.float32]:
         """A (size, size, 3) float32 image (row 0 at the top) from the orthographic camera looking along -view."""
         import moderngl
 
-        if not 1 <= size <= 4096:
-            raise InputError(f"size must be in 1..4096, got {size}")
+        validate.int_in_range("size", size, 1, 4096)
         v = np.asarray(view, dtype=np.float64)
         v = v / np.linalg.norm(v)
         prog = self.program()
         self._uniforms(prog, lighting, v)
-        _set(prog, "u_view_projection", tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel()))
-        _set(prog, "u_model", tuple(model_matrix(self.mesh).T.ravel()))
-        color = self.ctx.texture((size, size), 4, dtype="f4")
-        depth = self.ctx.depth_renderbuffer((size, size))
-        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
+        set_uniform(prog, "u_view_projection", tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel()))
+        set_uniform(prog, "u_model", tuple(model_matrix(self.mesh).T.ravel()))
         vao = self._vao(prog, indexed=True)
         try:
-            fbo.use()
-            self.ctx.enable(moderngl.DEPTH_TEST)
-            self.ctx.disable(moderngl.CULL_FACE)
-            fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-            vao.render(moderngl.TRIANGLES)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+            with float_target(self.ctx, size, size, depth=True) as fbo:
+                self.ctx.enable(moderngl.DEPTH_TEST)
+                self.ctx.disable(moderngl.CULL_FACE)
+                fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+                vao.render(moderngl.TRIANGLES)
+                return read_image(fbo)
         finally:
             vao.release()
-            fbo.release()
-            color.release()
-            depth.release()
-        return np.ascontiguousarray(raw[::-1, :, :3])

@@ -24,17 +24,27 @@ from typing import Any, Final, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.gl import shaders
 from relight.gl.render import ORTHO_DISTANCE, create_context, view_projection
+from relight.gl.targets import (
+    MESH_LAYOUT,
+    POINT_WIDTH,
+    float_target,
+    mesh_buffers,
+    point_rows,
+    read_points,
+    read_rgba,
+    set_uniform,
+    vertex_array,
+)
 from relight.mesh.model import TriangleMesh
 from relight.vertex_texture import pack_float16
 
 Mode = Literal["unshadowed", "ao", "transfer"]
 MODES: Final[tuple[Mode, ...]] = ("unshadowed", "ao", "transfer")
 _DEFINE: Final = {"unshadowed": "MODE_UNSHADOWED", "ao": "MODE_AO", "transfer": "MODE_TRANSFER"}
-#: Width of the probe target (texels).
-PROBE_WIDTH: Final = 2048
 
 
 def cosine_zonal(order: int) -> NDArray[np.float64]:
@@ -91,9 +101,7 @@ class PrtRenderer:
                  order: int = 3, ctx: Any = None) -> None:
         self.mesh, self.order, self.n = mesh, int(order), (int(order) + 1) ** 2
         self.ctx = ctx if ctx is not None else create_context()
-        inter = np.concatenate([mesh.positions, mesh.normals], axis=1).astype("<f4")
-        self.vbo = self.ctx.buffer(inter.tobytes())
-        self.ibo = self.ctx.buffer(np.ascontiguousarray(mesh.faces, dtype="<u4").tobytes())
+        self.vbo, self.ibo = mesh_buffers(self.ctx, mesh)
         self.textures: dict[str, Any] = {}
         for name, values in (("transfer", transfer), ("ao", ao)):
             if values is None:
@@ -133,44 +141,28 @@ class PrtRenderer:
         light = np.asarray(lighting, dtype=np.float64)
         if light.ndim != 2 or light.shape[0] < self.n or light.shape[1] != 3:
             raise InputError(f"lighting must be (>= {self.n}, 3) real coefficients, got shape {light.shape}")
-        _set(prog, "u_light", [tuple(float(x) for x in row) for row in light[: self.n]])
-        _set(prog, "u_cosine", [float(x) for x in cosine_zonal(self.order)])
-        _set(prog, "u_albedo", float(albedo))
+        set_uniform(prog, "u_light", [tuple(float(x) for x in row) for row in light[: self.n]])
+        set_uniform(prog, "u_cosine", [float(x) for x in cosine_zonal(self.order)])
+        set_uniform(prog, "u_albedo", float(albedo))
         for unit, name in enumerate(("transfer", "ao")):
-            _set(prog, f"u_{name}", unit)
+            set_uniform(prog, f"u_{name}", unit)
             if name in self.textures:
                 self.textures[name].use(location=unit)
 
     def _vao(self, prog: Any, indexed: bool) -> Any:
-        used = [nm for nm in ("a_position", "a_normal") if prog.get(nm, None) is not None]
-        fmt = " ".join("3f" if nm in used else "12x" for nm in ("a_position", "a_normal"))
-        content = [(self.vbo, fmt, *used)] if used else []
-        if indexed:
-            return self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
-        return self.ctx.vertex_array(prog, content)
+        return vertex_array(self.ctx, prog, self.vbo, MESH_LAYOUT, self.ibo if indexed else None)
 
     def probe(self, mode: Mode, lighting: ArrayLike, albedo: float = 1.0) -> NDArray[np.float32]:
         """Every vertex's radiance (V, 3) through ``mode``'s vertex shader (one point per vertex, tests)."""
-        import moderngl
-
         prog = self.program(mode, probe=True)
         self._uniforms(prog, lighting, albedo)
-        rows = max(1, -(-self.mesh.n_vertices // PROBE_WIDTH))
-        _set(prog, "u_output_size", (PROBE_WIDTH, rows))
-        tex = self.ctx.texture((PROBE_WIDTH, rows), 4, dtype="f4")
-        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        n = self.mesh.n_vertices
+        set_uniform(prog, "u_output_size", (POINT_WIDTH, point_rows(n)))
         vao = self._vao(prog, indexed=False)
         try:
-            fbo.use()
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-            vao.render(moderngl.POINTS, vertices=self.mesh.n_vertices)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(-1, 4)
+            return read_points(self.ctx, vao, n, vertices=n)
         finally:
             vao.release()
-            fbo.release()
-            tex.release()
-        return np.asarray(raw[: self.mesh.n_vertices, :3])
 
     def draw(self, mode: Mode, view: ArrayLike, lighting: ArrayLike, size: int, *,
              albedo: float = 1.0) -> NDArray[np.float32]:
@@ -205,45 +197,31 @@ class PrtRenderer:
         """A float target with depth and ``frame(read=True)``: clear, draw, finish, and read the pixels back."""
         import moderngl
 
-        if not 1 <= size <= 4096:
-            raise InputError(f"size must be in 1..4096, got {size}")
+        validate.int_in_range("size", size, 1, 4096)
         v = np.asarray(view, dtype=np.float64)
         v = v / np.linalg.norm(v)
         prog = self.program(mode)
         vp = tuple(view_projection(v, "orthographic", ORTHO_DISTANCE).T.ravel())
         model = tuple(model_matrix(self.mesh).T.ravel())
-        color = self.ctx.texture((size, size), 4, dtype="f4")
-        depth = self.ctx.depth_renderbuffer((size, size))
-        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         vao = self._vao(prog, indexed=True)
-
-        def frame(read: bool = True) -> NDArray[np.float32]:
-            self._uniforms(prog, lighting, albedo)
-            _set(prog, "u_view_projection", vp)
-            _set(prog, "u_model", model)
-            fbo.use()
-            self.ctx.enable(moderngl.DEPTH_TEST)
-            self.ctx.disable(moderngl.CULL_FACE)
-            fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
-            vao.render(moderngl.TRIANGLES)
-            if not read:
-                self.ctx.finish()
-                return np.zeros((0, 0, 4), dtype=np.float32)
-            return np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
-
         try:
-            yield frame
+            with float_target(self.ctx, size, size, depth=True) as fbo:
+
+                def frame(read: bool = True) -> NDArray[np.float32]:
+                    self._uniforms(prog, lighting, albedo)
+                    set_uniform(prog, "u_view_projection", vp)
+                    set_uniform(prog, "u_model", model)
+                    fbo.use()
+                    self.ctx.enable(moderngl.DEPTH_TEST)
+                    self.ctx.disable(moderngl.CULL_FACE)
+                    fbo.clear(0.0, 0.0, 0.0, 1.0, depth=1.0)
+                    vao.render(moderngl.TRIANGLES)
+                    if not read:
+                        self.ctx.finish()
+                        return np.zeros((0, 0, 4), dtype=np.float32)
+                    return read_rgba(fbo)
+
+                yield frame
         finally:
             vao.release()
-            fbo.release()
-            color.release()
-            depth.release()
 
-
-def _set(prog: Any, name: str, value: Any) -> None:
-    """Set a uniform if the linker kept it."""
-    try:
-        member = prog[name]
-    except KeyError:
-        return
-    member.value = value

@@ -27,10 +27,12 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.gl import layout as layout_mod
 from relight.gl import shaders
 from relight.gl.mesh import Mesh, load_object
+from relight.gl.targets import float_target, read_image, set_uniform
 
 Mode = Literal["distant", "near"]
 Camera = Literal["orthographic", "perspective"]
@@ -178,10 +180,10 @@ class Renderer:
     def render_view_map(self, view_env: NDArray[np.float64]) -> None:
         """Eq. 12 for the view V (environment frame) into the per-frame map (all component bands)."""
         p = self._view_map_prog.prog
-        _set(p, "u_coefficients", 0)
-        _set(p, "u_view_env", tuple(float(x) for x in view_env))
-        _set(p, "u_view_map_rows", float(self.layout.height))
-        _set(p, "u_layer_weight", [float(w) for w in layout_mod.uniform_weights(self.global_layout, view_env)])
+        set_uniform(p, "u_coefficients", 0)
+        set_uniform(p, "u_view_env", tuple(float(x) for x in view_env))
+        set_uniform(p, "u_view_map_rows", float(self.layout.height))
+        set_uniform(p, "u_layer_weight", [float(w) for w in layout_mod.uniform_weights(self.global_layout, view_env)])
         self.global_coefficients.use(location=0)
         self.view_map_fbo.use()
         self.view_map_fbo.viewport = (0, 0, 2 * self.layout.height, self.layout.height * len(self.layout.components))
@@ -217,8 +219,7 @@ class Renderer:
         if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0.0:
             raise InputError(f"view must be a non-zero 3-vector, got {np.asarray(view).tolist()}")
         v = v / np.linalg.norm(v)
-        if not 1 <= size <= 4096:
-            raise InputError(f"size must be in 1..4096, got {size}")
+        validate.int_in_range("size", size, 1, 4096)
         if mode not in ("distant", "near"):
             raise InputError(f"mode must be 'distant' or 'near', got {mode!r}")
         if camera not in ("orthographic", "perspective"):
@@ -231,37 +232,27 @@ class Renderer:
         p = prog.prog
         vp = view_projection(v, camera, distance)
         d = ORTHO_DISTANCE if camera == "orthographic" else distance
-        _set(p, "u_model", tuple(np.eye(4).T.ravel()))
-        _set(p, "u_view_projection", tuple(vp.T.ravel()))
-        _set(p, "u_normal_matrix", tuple(np.eye(3).T.ravel()))
-        _set(p, "u_camera_position", tuple(float(x) for x in d * v))
-        _set(p, "u_view_direction", tuple(float(x) for x in v))
-        _set(p, "u_orthographic", camera == "orthographic")
-        _set(p, "u_env_rotation", cs)
-        _set(p, "u_sphere", (0.0, 0.0, 0.0, 1.0))
-        _set(p, "u_inverse_view_projection", tuple(np.linalg.inv(vp).T.ravel()))
-        _set(p, "u_viewport", (float(size), float(size)))
-        _set(p, "u_coefficients", 0)
-        _set(p, "u_view_map", 1)
-        _set(p, "u_view_map_rows", float(self.layout.height))
-        _set(p, "u_layer_weight", [float(w) for w in layout_mod.uniform_weights(self.layout, view_env)])
+        set_uniform(p, "u_model", tuple(np.eye(4).T.ravel()))
+        set_uniform(p, "u_view_projection", tuple(vp.T.ravel()))
+        set_uniform(p, "u_normal_matrix", tuple(np.eye(3).T.ravel()))
+        set_uniform(p, "u_camera_position", tuple(float(x) for x in d * v))
+        set_uniform(p, "u_view_direction", tuple(float(x) for x in v))
+        set_uniform(p, "u_orthographic", camera == "orthographic")
+        set_uniform(p, "u_env_rotation", cs)
+        set_uniform(p, "u_sphere", (0.0, 0.0, 0.0, 1.0))
+        set_uniform(p, "u_inverse_view_projection", tuple(np.linalg.inv(vp).T.ravel()))
+        set_uniform(p, "u_viewport", (float(size), float(size)))
+        set_uniform(p, "u_coefficients", 0)
+        set_uniform(p, "u_view_map", 1)
+        set_uniform(p, "u_view_map_rows", float(self.layout.height))
+        set_uniform(p, "u_layer_weight", [float(w) for w in layout_mod.uniform_weights(self.layout, view_env)])
         self.coefficients.use(location=0)
         self.view_map.use(location=1)
-        color = self.ctx.texture((size, size), 4, dtype="f4")
-        depth = self.ctx.depth_renderbuffer((size, size))
-        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
-        try:
-            fbo.use()
-            fbo.viewport = (0, 0, size, size)
+        with float_target(self.ctx, size, size, depth=True) as fbo:
             fbo.clear(background, background, background, 1.0, depth=1.0)
             self.ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
             prog.vao.render(moderngl.TRIANGLES)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
-        finally:
-            fbo.release()
-            color.release()
-            depth.release()
-        return np.ascontiguousarray(raw[::-1, :, :3])
+            return read_image(fbo)
 
 
 def _rotate_y(d: NDArray[np.float64], cs: tuple[float, float]) -> NDArray[np.float64]:
@@ -269,16 +260,6 @@ def _rotate_y(d: NDArray[np.float64], cs: tuple[float, float]) -> NDArray[np.flo
     c, s = cs
     return np.array([c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]])
 
-
-def _set(prog: Any, name: str, value: Any) -> None:
-    """Set a uniform if the linker kept it (unused uniforms are optimised away)."""
-    try:
-        member = prog[name]
-    except KeyError:
-        return
-    if isinstance(value, list) and getattr(member, "array_length", 0) == 1:
-        value = value[0]  # moderngl reads a one-element array as a scalar
-    member.value = value
 
 
 def render_result(

@@ -30,9 +30,11 @@ from typing import Any, Final, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from relight import validate
 from relight.errors import InputError
 from relight.gl import shaders
 from relight.gl.render import ORTHO_DISTANCE, create_context, view_projection
+from relight.gl.targets import POINT_WIDTH, float_target, point_rows, read_image, read_points, set_uniform, vertex_array
 from relight.view_maps import check_layout
 
 Mode = Literal["general", "fixed-light", "fixed-view", "transfer"]
@@ -62,6 +64,10 @@ def vertex_tangents(frames: ArrayLike) -> NDArray[np.float32]:
     f = np.asarray(frames, dtype=np.float64)
     w = np.where(np.linalg.det(f) < 0.0, -1.0, 1.0)
     return np.ascontiguousarray(np.concatenate([f[:, 0], w[:, None]], axis=1), dtype="<f4")
+
+
+#: The interleaved vertex layout of :meth:`TableRenderer.geometry`.
+_LAYOUT: Final = (("a_position", 3), ("a_normal", 3), ("a_tangent", 4))
 
 
 def _rows(count: int) -> int:
@@ -134,48 +140,31 @@ class TableRenderer:
         return _Geometry(pos.shape[0], self.ctx.buffer(inter.tobytes()), ibo)
 
     def _vao(self, prog: Any, geo: _Geometry, indexed: bool) -> Any:
-        sizes = {"a_position": 3, "a_normal": 3, "a_tangent": 4}
-        used = [nm for nm in sizes if prog.get(nm, None) is not None]  # the linker drops unused attributes
-        fmt = " ".join(f"{k}f" if nm in used else f"{4 * k}x" for nm, k in sizes.items())
-        content = [(geo.vbo, fmt, *used)] if used else []  # fixed-view: everything comes from the data texture
-        if indexed and geo.ibo is not None:
-            return self.ctx.vertex_array(prog, content, index_buffer=geo.ibo, index_element_size=4)
-        return self.ctx.vertex_array(prog, content)
+        # fixed-view uses no attribute: everything comes from the data texture
+        return vertex_array(self.ctx, prog, geo.vbo, _LAYOUT, geo.ibo if indexed else None)
 
     def _uniforms(self, prog: Any, view: ArrayLike, lighting: ArrayLike | None) -> None:
         v = np.asarray(view, dtype=np.float64)
         v = v / np.linalg.norm(v)
-        _set(prog, "u_view", tuple(float(x) for x in v))
+        set_uniform(prog, "u_view", tuple(float(x) for x in v))
         if lighting is not None:
             light = np.asarray(lighting, dtype=np.float64)
             if light.ndim != 2 or light.shape[0] < self.n or light.shape[1] != 3:
                 raise InputError(f"lighting must be (>= {self.n}, 3) real coefficients, got shape {light.shape}")
-            _set(prog, "u_light", [tuple(float(x) for x in row) for row in light[: self.n]])
-        _set(prog, "u_table", 0)
-        _set(prog, "u_vertex_data", 1)
+            set_uniform(prog, "u_light", [tuple(float(x) for x in row) for row in light[: self.n]])
+        set_uniform(prog, "u_table", 0)
+        set_uniform(prog, "u_vertex_data", 1)
         self.table.use(location=0)
         if self._data is not None:
             self._data.use(location=1)
 
     def _points(self, prog: Any, geo: _Geometry, count: int, instances: int) -> NDArray[np.float32]:
-        import moderngl
-
-        rows = _rows(count)
-        _set(prog, "u_output_size", (DATA_WIDTH, rows))
-        tex = self.ctx.texture((DATA_WIDTH, rows), 4, dtype="f4")
-        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        set_uniform(prog, "u_output_size", (POINT_WIDTH, point_rows(count)))
         vao = self._vao(prog, geo, indexed=False)
         try:
-            fbo.use()
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-            vao.render(moderngl.POINTS, vertices=geo.count, instances=instances)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(-1, 4)
+            return read_points(self.ctx, vao, count, vertices=geo.count, instances=instances)
         finally:
             vao.release()
-            fbo.release()
-            tex.release()
-        return np.asarray(raw[:count, :3])
 
     # ------------------------------------------------------------------------------------------ passes
     def set_transfer(self, folded: ArrayLike) -> None:
@@ -241,41 +230,27 @@ class TableRenderer:
         before the read-back, for timing (bench/shtable_modes.py)."""
         import moderngl
 
-        if not 1 <= size <= 4096 or frames < 1:
-            raise InputError(f"size must be in 1..4096 and frames >= 1, got {size}, {frames}")
+        validate.int_in_range("size", size, 1, 4096)
+        validate.at_least("frames", frames, 1)
         v = np.asarray(view, dtype=np.float64)
         v = v / np.linalg.norm(v)
         prog = self.program(mode)
         self._uniforms(prog, v, lighting)
-        color = self.ctx.texture((size, size), 4, dtype="f4")
-        depth = self.ctx.depth_renderbuffer((size, size))
-        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         vao = self._vao(prog, geo, indexed=True)
         try:
-            fbo.use()
-            self.ctx.enable(moderngl.DEPTH_TEST)
-            self.ctx.disable(moderngl.CULL_FACE)
-            for k in range(frames - 1, -1, -1):  # the last frame is the asked-for view
-                c, s = np.cos(np.radians(k)), np.sin(np.radians(k))
-                vk = np.array([c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]])
-                if mode != "fixed-view":  # fixed-view: the view the data was prepared for (only the camera moves)
-                    _set(prog, "u_view", tuple(float(x) for x in vk))
-                _set(prog, "u_view_projection", tuple(view_projection(vk, "orthographic", ORTHO_DISTANCE).T.ravel()))
-                fbo.clear(background, background, background, 1.0, depth=1.0)
-                vao.render(moderngl.TRIANGLES)
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype="<f4").reshape(size, size, 4)
+            with float_target(self.ctx, size, size, depth=True) as fbo:
+                self.ctx.enable(moderngl.DEPTH_TEST)
+                self.ctx.disable(moderngl.CULL_FACE)
+                for k in range(frames - 1, -1, -1):  # the last frame is the asked-for view
+                    c, s = np.cos(np.radians(k)), np.sin(np.radians(k))
+                    vk = np.array([c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]])
+                    if mode != "fixed-view":  # fixed-view: the view the data was prepared for (the camera moves)
+                        set_uniform(prog, "u_view", tuple(float(x) for x in vk))
+                    set_uniform(prog, "u_view_projection",
+                         tuple(view_projection(vk, "orthographic", ORTHO_DISTANCE).T.ravel()))
+                    fbo.clear(background, background, background, 1.0, depth=1.0)
+                    vao.render(moderngl.TRIANGLES)
+                return read_image(fbo)
         finally:
             vao.release()
-            fbo.release()
-            color.release()
-            depth.release()
-        return np.ascontiguousarray(raw[::-1, :, :3])
 
-
-def _set(prog: Any, name: str, value: Any) -> None:
-    """Set a uniform if the linker kept it."""
-    try:
-        member = prog[name]
-    except KeyError:
-        return
-    member.value = value

@@ -62,8 +62,7 @@ def reference_sphere_image(
     from relight.brdf.spec import parse_brdf
     from relight.reference_view import reference_sphere
 
-    if not 1 <= size <= MAX_REFERENCE_SIZE:
-        raise InputError(f"reference size must be in 1..{MAX_REFERENCE_SIZE}, got {size}")
+    validate.int_in_range("reference size", size, 1, MAX_REFERENCE_SIZE)
     px = _read_map(envmap_path, max_pixels, env_rows)
     brdf = parse_brdf(brdf_spec)
     return np.asarray(reference_sphere(px, brdf, np.asarray(view, dtype=np.float64), size), dtype=np.float32)
@@ -95,13 +94,11 @@ def mesh_reference_image(
     from relight.mesh import geometry as geometry_mod
     from relight.mitsuba_mesh import render_mesh_mitsuba
 
-    if not 1 <= size <= MAX_REFERENCE_SIZE:
-        raise InputError(f"reference size must be in 1..{MAX_REFERENCE_SIZE}, got {size}")
+    validate.int_in_range("reference size", size, 1, MAX_REFERENCE_SIZE)
     if spp < 1 or size * size * spp > MAX_MESH_REFERENCE_SAMPLES:
         raise InputError(f"size^2 x spp must be in 1..{MAX_MESH_REFERENCE_SAMPLES}, got {size}^2 x {spp}")
     lo, hi = MESH_REFERENCE_DEPTHS
-    if not lo <= max_depth <= hi:
-        raise InputError(f"max_depth must be in {lo}..{hi} (2 = direct light), got {max_depth}")
+    validate.int_in_range("max_depth (2 = direct light)", max_depth, lo, hi)
     validate.in_range("albedo", albedo, 0.0, 1.0)
     mesh = geometry_mod.from_bytes(geometry, vertices, faces).normalised()
     px = _read_map(envmap_path, max_pixels, env_rows)
@@ -116,8 +113,7 @@ def envmap_texture(envmap_path: str, rows: int, *, max_pixels: int | None = None
     """
     from relight.envmap.exr import to_half_safe
 
-    if not 1 <= rows <= 4096:
-        raise InputError(f"rows must be in 1..4096, got {rows}")
+    validate.int_in_range("rows", rows, 1, 4096)
     px = _read_map(envmap_path, max_pixels, rows)
     half, _ = to_half_safe(px)
     return np.ascontiguousarray(half).astype("<f2").tobytes(), int(px.shape[0]), int(px.shape[1])

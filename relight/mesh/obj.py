@@ -13,6 +13,7 @@ import re
 
 import numpy as np
 
+from relight import validate
 from relight.errors import InputError
 from relight.mesh.model import Caps, RawMesh, check_positions
 
@@ -77,7 +78,6 @@ def read_obj_bytes(data: bytes, caps: Caps | None = None, name: str = "<obj>") -
     corner_uvs = None
     if every_corner_has_uv and uvs:
         uv = np.asarray(uvs, dtype=np.float64)
-        if not np.all(np.isfinite(uv)):
-            raise InputError(f"{name}: non-finite texture coordinates")
+        validate.finite_array(f"{name}: texture coordinates", uv)
         corner_uvs = uv[np.asarray(face_uvs, dtype=np.intp)]
     return RawMesh(positions=positions, faces=f, corner_uvs=corner_uvs, source=name)

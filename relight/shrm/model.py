@@ -16,7 +16,9 @@ from relight.conventions import (
     latlong_dirs,
     ring_thetas,
 )
+from relight.errors import InputError
 from relight.indexing import full_index
+from relight.reports import ShrmReport
 from relight.shrm.basis import (
     Y00,
     FloatArray,
@@ -91,6 +93,14 @@ class SHRM:
     components: list[SHRMComponent]
     brdf: dict[str, Any] | None = None
     report: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def typed_report(self) -> ShrmReport:
+        """The report as :class:`relight.reports.ShrmReport` (what ``create_shrm`` and ``read_shrm`` give);
+        InputError for an SHRM built by hand whose report is a plain mapping."""
+        if not isinstance(self.report, ShrmReport):
+            raise InputError("this SHRM's report is a plain mapping, not create_shrm's ShrmReport")
+        return self.report
 
     @property
     def height(self) -> int:

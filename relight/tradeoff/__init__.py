@@ -25,7 +25,7 @@ Torrance–Sparrow with ``fresnel="none"``, Beckmann or GGX, and Lambert), Mitsu
 shown to it exactly (H even), every point also records ``mitsuba_error``: its error against an independent renderer.
 Mitsuba renders once per sweep (the image does not depend on the point): a unit sphere under the map, seen by an
 orthographic camera along the sweep's view (``view``, also for view-independent maps), direct light only,
-:class:`~relight.mitsuba_twin.TwinSettings` (64 x 64 pixels, 8192 samples per pixel). Each point's output map
+:class:`~relight.mitsuba_compare.TwinSettings` (64 x 64 pixels, 8192 samples per pixel). Each point's output map
 becomes the same image (per sub-pixel, 4 x 4 per pixel: N from the sphere, ``R = 2 (N.V) N - V``, the map looked up
 bilinearly at its centre direction: R for view maps and R-centred lobes, N for Lambert's map), and the two images
 are compared on 4 x 4-pixel block means of Rec. 709 luminance over the blocks lying entirely within image radius

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from relight.errors import InputError, RelightError
-from relight.mitsuba_twin import TwinSettings
+from relight.mitsuba_compare import TwinSettings
 from relight.tradeoff.points import is_reflection_map
 from relight.tradeoff.report import Grid, MitsubaComparison
 
@@ -49,17 +49,17 @@ def mitsuba_errors(
 ) -> tuple[list[tuple[float, float]], MitsubaComparison]:
     """Each map's relative RMS against Mitsuba's sphere image (one render) and against the reference's, and the meta
     entry (module docstring)."""
-    from relight import mitsuba_twin
+    from relight import mitsuba_compare
 
     center = str(brdf.center) if is_reflection_map(brdf) else "R"  # view maps are indexed by R (reflect, reference)
     t0 = time.perf_counter()
-    cmp = mitsuba_twin.compare_sphere(px, bsdf, view, settings)
+    cmp = mitsuba_compare.compare_sphere(px, bsdf, view, settings)
     render_seconds = time.perf_counter() - t0
     ref_blocks = cmp.blocks(ref, center)
     errors = []
     for m in maps:
         y = cmp.blocks(m, center)
-        errors.append((mitsuba_twin.block_rms(y, cmp.truth), mitsuba_twin.block_rms(y, ref_blocks)))
+        errors.append((mitsuba_compare.block_rms(y, cmp.truth), mitsuba_compare.block_rms(y, ref_blocks)))
     meta = MitsubaComparison(
         computed=True,
         variant=cmp.render.variant,
@@ -77,7 +77,7 @@ def mitsuba_errors(
         map_center=center,
         seconds=render_seconds,
         noise=cmp.noise,
-        reference_error=mitsuba_twin.block_rms(ref_blocks, cmp.truth),
+        reference_error=mitsuba_compare.block_rms(ref_blocks, cmp.truth),
         metric=(f"relative RMS over the {cmp.truth.size} blocks of {settings.block} x {settings.block} pixels lying "
                 f"within image radius {settings.radius:g} of a {settings.size} x {settings.size} orthographic "
                 "sphere image, Rec. 709 luminance; relight's map looked up bilinearly at its centre direction, "

@@ -112,26 +112,26 @@ def frequency_shrm_point(
         return t1 - t0, time.perf_counter() - t1, out, image
 
     _, (t_create, t_view, shrm, image) = timed(create)
-    comps = shrm.report["components"]
-    plans = costmodel.shrm_lobe_plans(brdf, shrm.report)
+    report = shrm.typed_report
+    plans = costmodel.shrm_lobe_plans(brdf, report)
     f_proj = min(max(p.f_rho for p in plans), h - 1)
-    pred = cal.predict(costmodel.shrm_report_features(brdf, shrm.report, height=h, width=w, views=1))
-    measured_stages = costmodel.report_stages(shrm.report["timings"])
+    pred = cal.predict(costmodel.shrm_report_features(brdf, report, height=h, width=w, views=1))
+    measured_stages = costmodel.report_stages(report.timings)
     measured_stages["view"] = t_view
-    worst = shrm.report["predicted"]
+    worst = report.predicted
     return TradeoffPoint(
         method="frequency",
         representation="shrm",
         setting={"epsilon": eps},
         orders={
             "F_B": max(p.f_b for p in plans), "P_B": max(p.p_b for p in plans), "F_proj": f_proj,
-            "components": [{"kind": c["lobe"].get("kind"), "center": c["center"], "structure": c["structure"],
-                            "F_rho": p.f_rho, "F_B": p.f_b, "P_B": p.p_b, "maps": c["n_maps"],
+            "components": [{"kind": c.lobe.get("kind"), "center": c.center, "structure": c.structure,
+                            "F_rho": p.f_rho, "F_B": p.f_b, "P_B": p.p_b, "maps": c.n_maps,
                             "probes": [list(q) for q in p.probes] if p.probes else None}
-                           for c, p in zip(comps, plans, strict=True)],
+                           for c, p in zip(report.components, plans, strict=True)],
         },
-        predicted_error=finite_or_none(worst.get("rms_min_of_errors")),
-        predicted_error_bound=finite_or_none(worst.get("rms_appendix_b")),
+        predicted_error=finite_or_none(worst.rms_min_of_errors),
+        predicted_error_bound=finite_or_none(worst.rms_appendix_b),
         measured_error=relative_rms(image, ref),
         predicted_seconds=pred.seconds,
         measured_seconds=t_create + t_view,

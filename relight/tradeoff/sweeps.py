@@ -14,7 +14,7 @@ from relight import __version__, costmodel, validate
 from relight.brdf.base import Lobe, RadialLobe
 from relight.conventions import luminance
 from relight.errors import InputError, RelightError
-from relight.mitsuba_twin import TwinSettings
+from relight.mitsuba_compare import TwinSettings
 from relight.tradeoff.mitsuba import mitsuba_errors, mitsuba_plan
 from relight.tradeoff.points import (
     angular_point,
@@ -90,7 +90,7 @@ def sweep(
     ``mitsuba``: None (default) measures every point against Mitsuba 3 too when the material has a twin
     (``relight.mitsuba_twin.twin``), the map's shape allows an exact Mitsuba bitmap (H even) and Mitsuba runs here,
     and records why not otherwise (also when the render fails); True raises instead of skipping; False skips.
-    ``mitsuba_settings`` defaults to :class:`relight.mitsuba_twin.TwinSettings` ``()``.
+    ``mitsuba_settings`` defaults to :class:`relight.mitsuba_compare.TwinSettings` ``()``.
     """
     px = check_pixels(pixels)
     h = px.shape[0]

@@ -24,6 +24,7 @@ from relight.worker import gaussian_render as tasks
 
 if TYPE_CHECKING:
     from relight.server.state import Services
+    from relight.sg_render import GaussianRenderReport
 
 GAUSSIAN_RENDER_TIMEOUT_S: Final = 300.0
 MODES: Final = ("none", "ao", "sh", "sh-lobe")
@@ -39,7 +40,7 @@ async def _result(services: Services, job_id: str, kind: str) -> tuple[dict[str,
 
 
 async def gaussian_render(services: Services, fit: str, chain: str, visibility: str | None, mode: str,
-                          view: list[float], size: int) -> tuple[np.ndarray, dict[str, Any]]:
+                          view: list[float], size: int) -> tuple[np.ndarray, GaussianRenderReport]:
     """The (size, size, 3) image and its report (module docstring)."""
     if mode not in MODES:
         raise Unprocessable(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
@@ -73,6 +74,6 @@ async def gaussian_render(services: Services, fit: str, chain: str, visibility: 
     except asyncio.CancelledError:
         await services.cluster.cancel(fut)
         raise
-    out = (np.asarray(image), dict(report))
+    out = (np.asarray(image), report)
     services.render.keep(key, out)
     return out

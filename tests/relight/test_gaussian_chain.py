@@ -41,7 +41,7 @@ def test_every_level_against_angular_reference_within_appendix_b() -> None:
         assert lv.map.dtype == np.float32 and np.all(np.isfinite(lv.map))
     # one projection to the sharpest level's order; orders fall as sigma grows
     f = [lv.orders["F_B"] for lv in chain.levels]
-    assert chain.report["projection_order"] == max(f) and f == sorted(f, reverse=True)
+    assert chain.report.projection_order == max(f) and f == sorted(f, reverse=True)
 
 
 def test_blend_error_closed_form_against_quadrature() -> None:

@@ -23,8 +23,9 @@ from relight.inout_factors import build_factors
 from relight.inout_prt import point_transport, shade, truncation_error
 from relight.mesh import sample_mesh
 from relight.mesh_render import mesh_offset, surface_samples
+from relight.mitsuba_compare import block_mean, block_rms
 from relight.mitsuba_mesh import render_mesh_mitsuba
-from relight.mitsuba_twin import block_mean, block_rms, twin
+from relight.mitsuba_twin import twin
 from relight.raycast import RayCaster
 from relight.sh_render import environment_coefficients
 

@@ -2,7 +2,7 @@
 and one interreflection bounce against ``max_depth = 3`` (last test).
 
 Three relight images of the same camera (``relight.mesh_render``) are compared with Mitsuba's on 2 x 2-pixel blocks
-that the mesh covers entirely (silhouettes excluded), in relative RMS of luminance (``mitsuba_twin.block_rms``):
+that the mesh covers entirely (silhouettes excluded), in relative RMS of luminance (``mitsuba_compare.block_rms``):
 
 * relight's brute-force integrator at every sub-pixel's surface point (every map pixel x a ray-cast visibility; no
   SH): an exact integrator like Mitsuba's, so it must agree within Mitsuba's noise (``noise``: the relative RMS of
@@ -34,8 +34,8 @@ from relight.mesh_render import (
     surface_samples,
     unshadowed_transfer,
 )
+from relight.mitsuba_compare import block_mean, block_rms
 from relight.mitsuba_mesh import render_mesh_mitsuba
-from relight.mitsuba_twin import block_mean, block_rms
 from relight.raycast import RayCaster
 from relight.visibility import TransferSettings, compute_transfer, point_transfer
 

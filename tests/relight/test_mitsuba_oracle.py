@@ -63,9 +63,8 @@ from numpy.typing import NDArray
 from relight.brdf.models import TorranceSparrow
 from relight.conventions import latlong_dirs, luminance
 from relight.envmap import read_envmap, resample_latlong
+from relight.mitsuba_compare import block_far_radius, block_mean
 from relight.mitsuba_twin import (
-    block_far_radius,
-    block_mean,
     bsdf_eval,
     choose_variant,
     emitter_radiance,

@@ -14,7 +14,8 @@ from relight.brdf.models import TorranceSparrow
 from relight.conventions import luminance
 from relight.envmap import read_envmap, resample_latlong
 from relight.gaussian_chain import GaussianChain, build_chain
-from relight.mitsuba_twin import TwinSettings, block_mean, block_rms, compare_sphere, twin
+from relight.mitsuba_compare import TwinSettings, block_mean, block_rms, compare_sphere
+from relight.mitsuba_twin import twin
 from relight.sg_render import render_sphere_gaussian
 from relight.sgfit import FitSettings, fit_gaussian_lobes
 from relight.shrm import create_shrm, render_sphere

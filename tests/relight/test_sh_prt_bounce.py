@@ -32,8 +32,9 @@ from relight.envmap import read_envmap, resample_latlong
 from relight.errors import InputError
 from relight.mesh import sample_mesh
 from relight.mesh_render import lighting_coefficients, mesh_offset, surface_samples
+from relight.mitsuba_compare import block_mean, block_rms
 from relight.mitsuba_mesh import render_mesh_mitsuba
-from relight.mitsuba_twin import block_mean, block_rms, twin
+from relight.mitsuba_twin import twin
 from relight.raycast import RayCaster
 from relight.sh_prt import folded_transfer, shade_prt
 from relight.sh_prt_bounce import BounceSettings, cast, point_transfer, vertex_transfer

@@ -31,8 +31,9 @@ from relight.conventions import luminance
 from relight.envmap import read_envmap, resample_latlong
 from relight.mesh import sample_mesh
 from relight.mesh_render import lighting_coefficients, mesh_offset, surface_samples
+from relight.mitsuba_compare import block_mean, block_rms
 from relight.mitsuba_mesh import render_mesh_mitsuba, uv_frames, write_obj
-from relight.mitsuba_twin import block_mean, block_rms, mitsuba_module, twin
+from relight.mitsuba_twin import mitsuba_module, twin
 from relight.raycast import RayCaster
 from relight.sh_prt import folded_transfer, shade_prt
 from relight.sh_render import shade

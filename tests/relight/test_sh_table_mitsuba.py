@@ -29,7 +29,8 @@ from relight import sh
 from relight.brdf.anisotropic import AnisotropicTorranceSparrow
 from relight.conventions import luminance
 from relight.envmap import read_envmap, resample_latlong
-from relight.mitsuba_twin import TwinSettings, block_mean, block_rms, compare_sphere, twin
+from relight.mitsuba_compare import TwinSettings, block_mean, block_rms, compare_sphere
+from relight.mitsuba_twin import twin
 from relight.sh_render import environment_coefficients, render_sphere
 from relight.sh_table import SHTable, build_table
 

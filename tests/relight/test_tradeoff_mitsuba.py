@@ -6,9 +6,10 @@ What is checked, and against what:
   relight's ``f_r cos(theta_light)`` against Mitsuba's ``BSDF.eval`` in random directions, to 1e-4 relative (Mitsuba
   evaluates in float32: about 1e-6 relative; the tolerance leaves room for its ``tan^2`` and ``sqrt`` near the
   horizon, and a wrong D, G1 or normalisation is off by percents or more).
-* The sweep's sphere image of a map (:func:`relight.mitsuba_twin.sphere_from_map`) is ``relight.shrm.render_sphere``'s
-  image (to rounding), and the camera written out here from the documented convention (image right
-  ``normalize(+Y x V)``, image up ``V x right``) reads an analytic, asymmetric map where it should.
+* The sweep's sphere image of a map (:func:`relight.mitsuba_compare.sphere_from_map`) is
+  ``relight.shrm.render_sphere``'s image (to rounding), and the camera written out here from the documented
+  convention (image right ``normalize(+Y x V)``, image up ``V x right``) reads an analytic, asymmetric map where
+  it should.
 * A small sweep (studio map area-averaged to 32 rows, ``TorranceSparrow(0.2, "beckmann", fresnel="none")``, output
   S = 32 = the input rows, a 32 x 32 Mitsuba image at 4096 spp): the angular reference's image agrees with
   Mitsuba's to the noise floor plus stated systematic terms, so each point's ``mitsuba_error`` measures relight's
@@ -36,17 +37,8 @@ from relight.brdf.models import GGX, KajiyaKay, Microfacet, TorranceSparrow
 from relight.brdf.radial import Lambert, Lobe1D, Phong
 from relight.envmap import read_envmap, resample_latlong, write_exr
 from relight.errors import InputError
-from relight.mitsuba_twin import (
-    VARIANTS,
-    SphereComparison,
-    TwinSettings,
-    block_mean,
-    bsdf_eval,
-    compare_sphere,
-    sphere_from_map,
-    twin,
-    unavailable_reason,
-)
+from relight.mitsuba_compare import SphereComparison, TwinSettings, block_mean, compare_sphere, sphere_from_map
+from relight.mitsuba_twin import VARIANTS, bsdf_eval, twin, unavailable_reason
 from relight.reference_view import reference_view
 from relight.shrm import create_shrm, reflect, render_sphere
 from relight.tradeoff.report import Grid

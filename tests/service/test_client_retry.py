@@ -13,9 +13,10 @@ from pathlib import Path
 import httpx
 import pytest
 
+from relight.client.async_sdk import AsyncRelightClient
 from relight.client.calls import RETRY_JITTER
 from relight.client.errors import ApiError
-from relight.client.sdk import AsyncRelightClient, RelightClient
+from relight.client.sdk import RelightClient
 from relight.contract.models import JobState
 
 from .support import exr_bytes, make_envmap, start_server

@@ -48,11 +48,11 @@ async def render_gaussian(
     """The fit's material lit by the chain, on the sphere or the visibility job's mesh (module docstring)."""
     v = _view(view)
     image, report = await gaussian_render(services, fit, chain, visibility, mode, v, size)
-    attrs = {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.object": str(report.get("object")),
+    attrs = {"relight.view": ",".join(f"{c:.9g}" for c in v), "relight.object": report.object,
              "relight.visibility": mode}
     headers = {"Cache-Control": "public, max-age=3600"}
-    if "unclamped_min" in report:
-        rng = f"{report['unclamped_min']:.6g},{report['unclamped_max']:.6g}"
+    if report.unclamped_min is not None:
+        rng = f"{report.unclamped_min:.6g},{report.unclamped_max:.6g}"
         attrs["relight.visibility_range"] = rng
         headers |= {"X-Visibility-Range": rng, "Access-Control-Expose-Headers": "X-Visibility-Range"}
     body = await in_thread(_encode, image, fmt, exposure, tonemap, attrs)

@@ -150,7 +150,7 @@ def test_render_route(http: httpx.Client, served: dict[str, Any]) -> None:
     want, report = render_mesh_gaussian(material, local_chain, mesh, np.array([0.0, 0.0, 1.0]), 24,
                                         visibility=np.asarray(npz["visibility"], dtype=np.float64), mode="sh")
     np.testing.assert_allclose(_exr_pixels(r.content), want, rtol=1e-6, atol=1e-7)
-    assert (lo, hi) == pytest.approx((report["unclamped_min"], report["unclamped_max"]), rel=1e-5)
+    assert (lo, hi) == pytest.approx((report.unclamped_min, report.unclamped_max), rel=1e-5)
     # bad requests: a shadow mode without visibility, a chain id given as the fit, an unknown id
     assert_problem(http.get("/gaussian/render.exr", params={"fit": fit, "chain": chain, "mode": "ao"}), 422,
                    "visibility")

@@ -234,7 +234,8 @@ def test_the_sdks_submit_any_kind(served: dict[str, Any]) -> None:
     """``RelightClient.submit_job`` / ``job_result`` / ``job_file`` and their async twins."""
     import anyio
 
-    from relight.client.sdk import AsyncRelightClient, RelightClient
+    from relight.client.async_sdk import AsyncRelightClient
+    from relight.client.sdk import RelightClient
 
     with RelightClient(served["url"]) as c:
         wait_until(lambda: not c.list_jobs("queued") and not c.list_jobs("running"), 120, "earlier jobs to end")
