@@ -2,7 +2,7 @@
 // of metal spheres (MeshStandardMaterial, metalness 1) lit once by relight's KTX2 cube chain through
 // @relight/three and once by three's PMREMGenerator on the same lat-long map, and a white Lambert sphere lit by
 // a LightProbe from relight's SH9. Drawn into linear float targets (no tone mapping): the numbers of
-// tests/web/test_three_package_browser.py (the viewer's side-by-side panel is not built yet).
+// tests/web/test_three_package_browser.py; drawSideBySide paints the viewer's panel (web/src/exports_panel.js).
 import * as THREE from 'three';
 
 import { cubeChainTexture, lightProbeFromSH } from '@relight/three';
@@ -135,4 +135,42 @@ export function relativeRms(a, b, cells, size) {
     out.push(Math.sqrt(num / den));
   }
   return out;
+}
+
+/**
+ * The viewer's side-by-side (issue 17, item 9): on `renderer`'s canvas, the top row lit by relight's chain and the
+ * bottom row by three's PMREM of the same map (MeshStandardMaterial, metalness 1, roughness 0 ... 1; ACES, sRGB);
+ * returns the per-roughness relative RMS between the two (linear, sphere pixels).
+ */
+export function drawSideBySide(renderer, { chainBytes, halfRgb, height, width, size = 64 }) {
+  const relight = chainTexture(chainBytes);
+  const three = pmremTexture(renderer, halfRgb, height, width);
+  const rms = relativeRms(renderMetalSpheres(renderer, relight, { size }),
+    renderMetalSpheres(renderer, three, { size }), ROUGHNESS.length, size);
+  renderer.setPixelRatio(1);
+  renderer.setSize(ROUGHNESS.length * size, 2 * size, false);
+  const toneMapping = renderer.toneMapping;
+  renderer.toneMapping = THREE.ACESFilmicToneMapping;
+  renderer.setClearColor(0x000000, 1);
+  renderer.setScissorTest(true);
+  const geometry = new THREE.SphereGeometry(1, 64, 32);
+  ROUGHNESS.forEach((r, i) => {
+    [relight, three].forEach((env, row) => {
+      const scene = new THREE.Scene();
+      const material = new THREE.MeshStandardMaterial({ color: 0xffffff, metalness: 1, roughness: r, envMap: env });
+      scene.add(new THREE.Mesh(geometry, material));
+      const y = row === 0 ? size : 0;
+      renderer.setViewport(i * size, y, size, size);
+      renderer.setScissor(i * size, y, size, size);
+      renderer.clear();
+      renderer.render(scene, cellCamera(0));
+      material.dispose();
+    });
+  });
+  geometry.dispose();
+  renderer.setScissorTest(false);
+  renderer.toneMapping = toneMapping;
+  relight.dispose();
+  three.dispose();
+  return rms;
 }

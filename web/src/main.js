@@ -11,6 +11,7 @@ import { initShadows } from './shadows.js';
 import { initShTables } from './sh_table_panel.js';
 import { initBrushed } from './brushed_panel.js';
 import { initOrderGrid } from './sh_order_grid.js';
+import { initExports } from './exports_panel.js';
 import { chartModel, renderSvg } from './tradeoff.js';
 import { ShrmViewer } from './viewer.js';
 
@@ -588,6 +589,7 @@ async function main() {
   initShTables(state, $, showError);
   initBrushed(state, $, showError);
   initOrderGrid(state, $, showError);
+  initExports(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
     await loadResult(fromUrl).catch((err) => showError('plan-error', err));

@@ -1,0 +1,127 @@
+// Engine exports of the current map (issue 17, item 9): download buttons for every export the API serves
+// (GET /envmaps/{id}/ibl: the KTX2 prefiltered cube chain per target engine, the SH9 document with every
+// engine convention), and a side-by-side of relight's chain against three.js' own MeshStandardMaterial +
+// PMREMGenerator on the same map (engine_compare.js, through @relight/three).
+import * as THREE from 'three';
+
+import { drawSideBySide, ROUGHNESS } from './engine_compare.js';
+
+export const TARGETS = ['three', 'filament', 'gltf', 'babylon'];
+
+/** Every export of map `id`: [label, file name, query string]. */
+export function exportList(id) {
+  const short = id.slice(0, 12);
+  return [
+    ...TARGETS.map((t) => [`KTX2 ${t}`, `${short}-${t}.ktx2`, `target=${t}&format=ktx2`]),
+    ['SH9 (all conventions)', `${short}-sh9.json`, 'format=sh'],
+  ];
+}
+
+/** GET the export, waiting while its job runs (202 + Retry-After); the file's bytes. */
+export async function fetchExport(api, id, query, onWait = () => {}) {
+  for (;;) {
+    const resp = await api.request('GET', `/envmaps/${id}/ibl?${query}`, { as: 'response' });
+    if (resp.status === 200) {
+      return new Uint8Array(await resp.arrayBuffer());
+    }
+    onWait(await resp.json());
+    const wait = Number(resp.headers.get('Retry-After') || 1);
+    await new Promise((r) => setTimeout(r, 1000 * wait));
+  }
+}
+
+function saveAs(bytes, name, type) {
+  const url = URL.createObjectURL(new Blob([bytes], { type }));
+  const a = document.createElement('a');
+  a.href = url;
+  a.download = name;
+  document.body.append(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10_000);
+}
+
+export function initExports(state, $, showError) {
+  const section = document.createElement('section');
+  section.id = 'exports-panel';
+  section.innerHTML = `<h2>Engine exports</h2>
+    <div id="exports-buttons"></div>
+    <button id="exports-compare" type="button">relight vs three's PMREM</button>
+    <div id="exports-status"></div><div id="exports-error" class="error"></div>
+    <canvas id="exports-canvas" width="${ROUGHNESS.length * 64}" height="128" style="width:100%"></canvas>
+    <div id="exports-rms"></div>`;
+  (document.querySelector('aside') || document.querySelector('main') || document.body).append(section);
+  const panel = { downloads: 0, rms: null, busy: false };
+  state.exportsPanel = panel;
+  let renderer = null;
+
+  const status = (text) => {
+    $('exports-status').textContent = text;
+  };
+
+  function refresh() {
+    const box = $('exports-buttons');
+    box.textContent = '';
+    const id = state.envmapId;
+    if (!id) {
+      box.textContent = 'upload an environment map';
+      return;
+    }
+    for (const [label, name, query] of exportList(id)) {
+      const b = document.createElement('button');
+      b.type = 'button';
+      b.textContent = label;
+      b.dataset.export = query;
+      b.addEventListener('click', async () => {
+        showError('exports-error', null);
+        try {
+          status(`${label}: computing`);
+          const bytes = await fetchExport(state.api, id, query, (job) => status(`${label}: ${job.state}`));
+          saveAs(bytes, name, name.endsWith('.json') ? 'application/json' : 'image/ktx2');
+          panel.downloads += 1;
+          status(`${label}: ${bytes.length} bytes`);
+        } catch (err) {
+          showError('exports-error', err);
+        }
+      });
+      box.append(b);
+    }
+  }
+
+  $('exports-compare').addEventListener('click', async () => {
+    const env = state.viewer?.environment;
+    const id = state.envmapId;
+    if (!env || !id || panel.busy) {
+      return;
+    }
+    panel.busy = true;
+    showError('exports-error', null);
+    try {
+      status('three chain: computing');
+      // three's own layout: faces 256^2 down to 8^2 (LOD_MIN = 3), as PMREMGenerator writes them
+      const chainBytes = await fetchExport(state.api, id, 'target=three&format=ktx2&size=256&levels=6',
+        (job) => status(`three chain: ${job.state}`));
+      renderer ??= new THREE.WebGLRenderer({ canvas: $('exports-canvas'), antialias: false,
+        preserveDrawingBuffer: true });
+      panel.rms = drawSideBySide(renderer, { chainBytes, halfRgb: env.halfRgb, height: env.height,
+        width: env.width });
+      $('exports-rms').textContent = `top: relight's chain, bottom: three's PMREM; relative RMS by roughness: ${
+        ROUGHNESS.map((r, i) => `r ${r}: ${(100 * panel.rms[i]).toPrecision(2)} %`).join(', ')}`;
+      status('compared');
+    } catch (err) {
+      showError('exports-error', err);
+    } finally {
+      panel.busy = false;
+    }
+  });
+
+  panel.refresh = refresh;
+  refresh();
+  const timer = setInterval(() => {
+    if (panel.shownFor !== state.envmapId) {
+      panel.shownFor = state.envmapId;
+      refresh();
+    }
+  }, 500);
+  panel.stop = () => clearInterval(timer);
+}
