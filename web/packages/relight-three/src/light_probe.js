@@ -1,4 +1,4 @@
-// relight's SH9 (`relight sh --convention NAME`, the `sh9` object of every export's manifest and of the
+// relight's SH9 (`relight sh --convention NAME`, the `sh9` object of the manifest of every export and of the
 // service's sh.json) as a three.js LightProbe.
 //
 // three's LightProbe holds SphericalHarmonics3 radiance coefficients c_k = int L K_k P_k dOmega (K positive, the
@@ -35,7 +35,7 @@ export function conventionScale(convention) {
 
 /**
  * three's radiance coefficients (9 [r, g, b]) from any relight SH document: `{convention, coefficients}`
- * (`relight sh`), an object with `sh9` (an export's manifest, the service's sh.json; its `three` entry is used),
+ * (`relight sh`), an object with `sh9` (the manifest of an export, the sh.json of the service; its `three` entry is used),
  * or `{three: {coefficients}}` (the `sh9` object itself).
  */
 export function threeCoefficients(doc) {
