@@ -16,7 +16,12 @@ Times are whole wall-clock seconds: cmgen's process (decode, equirect -> cube, m
 has no switch to time the filtering alone, so the chain-only ratio below uses its whole process and flatters
 relight by cmgen's decode and write time), relight's ``prefilter_chain`` call in-process (chain only), and the
 whole ``relight export`` process (decode, chain, KTX2 + JSON writes). numba's compiled near sum is cached on disk
-by a warm-up export before timing. Prints a markdown table and writes JSON (``--json``).
+by a warm-up export before timing. Prints markdown tables and writes JSON (``--json``).
+
+Two comparisons: (1) the issue's: each cmgen setting (its best is its most accurate, ``--ibl-samples=4096``)
+against relight's cheapest ``--epsilon`` run at equal or lower error (``at_cmgen_error``; relight's epsilons go
+up to 0.1 so that it can be as coarse as cmgen); (2) each relight run against cmgen's cheapest run at equal or
+lower error, or, where cmgen never gets there, its most accurate run (a lower bound on cmgen's time).
 """
 
 from __future__ import annotations

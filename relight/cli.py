@@ -190,11 +190,14 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``relight.reference.DEFAULT_TRUNCATION``, repeated so that building the parser imports nothing numerical
+#: (tests/relight/test_cli_export.py checks they agree and what the parser imports).
+REFERENCE_TRUNCATION = 1e-8
+
+
 def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     """The ``relight`` parser with every command; or, when ``argv`` names one of :data:`CORE_COMMANDS`, with the
     core's commands only (the providers and entry points are not imported: a small job starts faster)."""
-    from relight.reference import DEFAULT_TRUNCATION
-
     p = argparse.ArgumentParser(prog="relight", description=__doc__.split("\n\n")[0] if __doc__ else None)
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -219,8 +222,8 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     rf.add_argument("--brdf", required=True)
     rf.add_argument("--size", type=int, required=True)
     rf.add_argument("--view", help="X,Y,Z view direction for view-dependent BRDFs")
-    rf.add_argument("--truncation", type=float, default=DEFAULT_TRUNCATION,
-                    help=f"lobe energy fraction dropped (App. D; default {DEFAULT_TRUNCATION:g})")
+    rf.add_argument("--truncation", type=float, default=REFERENCE_TRUNCATION,
+                    help=f"lobe energy fraction dropped (App. D; default {REFERENCE_TRUNCATION:g})")
     rf.add_argument("--out", required=True)
     rf.set_defaults(func=cmd_reference)
 

@@ -70,10 +70,13 @@ def cmd_visibility(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``relight.visibility.KINDS``, repeated so that building the parser does not import numba and SciPy
+#: (tests/relight/test_cli_export.py checks they agree).
+VISIBILITY_KINDS = ("visibility", "diffuse_transfer", "shadow_matrix")
+
+
 def register(subparsers: Any) -> None:
     """Add ``mesh info`` and ``visibility`` to the ``relight`` command line."""
-    from relight.visibility import KINDS
-
     me = subparsers.add_parser("mesh", help="mesh commands (info)")
     msub = me.add_subparsers(dest="mesh_command", required=True)
     mi = msub.add_parser("info", help="counts, bounds and defects of a mesh (OBJ, glTF, GLB or a sample name)")
@@ -86,7 +89,7 @@ def register(subparsers: Any) -> None:
     vi.add_argument("--order", type=int, required=True, help="SH order F (l <= F, (F+1)^2 coefficients)")
     vi.add_argument("--rays", type=int, required=True, help="rays per vertex")
     vi.add_argument("--out", required=True, help="output .npz")
-    vi.add_argument("--kind", choices=KINDS, default="visibility")
+    vi.add_argument("--kind", choices=VISIBILITY_KINDS, default="visibility")
     vi.add_argument("--bounces", type=int, default=0, help="interreflection bounces (diffuse_transfer)")
     vi.add_argument("--albedo", type=float, default=0.8, help="albedo of the interreflections")
     vi.add_argument("--sampling", choices=("fibonacci", "random"), default="fibonacci")

@@ -27,6 +27,23 @@ def test_registered_conventions_are_the_modules() -> None:
     assert tuple(SH_CONVENTIONS) == tuple(CONVENTIONS)
 
 
+def test_building_the_parser_imports_nothing_heavy() -> None:
+    """Every ``relight`` process builds the whole parser (``relight export`` included): the constants its
+    options repeat agree with their modules, and building it imports neither numba nor SciPy (measured: they
+    were a third of ``relight export``'s start-up, bench/export.py)."""
+    from relight.cli import REFERENCE_TRUNCATION
+    from relight.cli_mesh import VISIBILITY_KINDS
+    from relight.reference import DEFAULT_TRUNCATION
+    from relight.visibility import KINDS
+
+    assert REFERENCE_TRUNCATION == DEFAULT_TRUNCATION and tuple(VISIBILITY_KINDS) == tuple(KINDS)
+    heavy = "('numba', 'scipy', 'relight.visibility', 'relight.reference')"
+    code = f"import sys, relight.cli as c; c.build_parser(); print(sorted(m for m in {heavy} if m in sys.modules))"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
+
+
 def test_sh_command_prints_and_writes_the_convention(tmp_path: Path) -> None:
     px = read_envmap(STUDIO).pixels
     proc = _run("sh", str(STUDIO), "--convention", "gltf")
