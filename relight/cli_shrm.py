@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from relight import validate
 from relight.errors import InputError
 
 
@@ -150,8 +151,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     shrm = read_shrm(args.shrm)
     view = parse_view(args.view)
-    if args.size < 1 or args.size > 8192:
-        raise InputError(f"--size must lie in 1..8192, got {args.size}")
+    validate.int_in_range("--size", args.size, 1, 8192)
     img = render_sphere(shrm, np.array(view), args.size, local=args.local)
     write_exr(args.out, img.astype(np.float32))
     msg = f"wrote {args.out}"

@@ -70,6 +70,7 @@ def render_table(args: argparse.Namespace) -> int:
     """``relight render --table``: the sphere or ``--mesh`` shaded with a per-view SH table (module docstring)."""
     import numpy as np
 
+    from relight import validate
     from relight.cli_shrm import parse_view
     from relight.envmap.display import write_png_preview
     from relight.envmap.exr import write_exr
@@ -81,8 +82,8 @@ def render_table(args: argparse.Namespace) -> int:
         raise InputError("--table renders with an SH table alone: drop the SHRM file, --fit, --chain and --local")
     if args.visibility != "none":
         raise InputError("--visibility is for Gaussian lobes; SH tables take shadows from --transfer")
-    if not 1 <= args.size <= 8192 or not 1 <= args.supersample <= 8:
-        raise InputError(f"--size must lie in 1..8192 and --supersample in 1..8, got {args.size}, {args.supersample}")
+    validate.int_in_range("--size", args.size, 1, 8192)
+    validate.int_in_range("--supersample", args.supersample, 1, 8)
     table = read_table(args.table)
     n = (table.order + 1) ** 2
     light = np.zeros((n, 3))

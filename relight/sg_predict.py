@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from relight import validate
 from relight.brdf.vmf import VonMisesFisher
 from relight.errors import InputError
 from relight.sgfit import DEFAULT_EXTRA_LOBES, DEFAULT_LOBES, DEFAULT_THETA_MAX, FitSettings
@@ -105,8 +106,8 @@ def chain_cost(height: int, width: int, *, epsilon: float = 1e-3, ratio: float =
 
 def object_cost(lobes: int, elevations: int, *, visibility_order: int | None = None) -> dict[str, Any]:
     """Per object: material bytes, fetches per pixel and visibility floats per vertex (module docstring)."""
-    if lobes < 1 or elevations < 1:
-        raise InputError(f"object_cost: need lobes >= 1 and elevations >= 1, got {lobes}, {elevations}")
+    validate.at_least("object_cost: lobes", lobes, 1)
+    validate.at_least("object_cost: elevations", elevations, 1)
     vis = 0 if visibility_order is None else (visibility_order + 1) ** 2
     return {"material_bytes": 2 * 8 * lobes * elevations, "fetches_per_pixel": 2 * lobes + 2 * lobes,
             "chain_lookups_per_pixel": lobes, "visibility_floats_per_vertex": vis}

@@ -76,8 +76,7 @@ class InOutRenderer:
     def program(self, probe: bool = False, terms: int | None = None) -> Any:
         """The program summing the first ``terms`` stored terms (all by default; whole pairs are the caller's)."""
         k = self.factors.terms if terms is None else int(terms)
-        if not 1 <= k <= self.factors.terms:
-            raise InputError(f"terms must lie in 1..{self.factors.terms}, got {terms}")
+        validate.int_in_range("terms", k, 1, self.factors.terms)
         key = (probe, k)
         if key not in self._progs:
             defs: dict[str, object] = {"INOUT_ORDER": self.order, "INOUT_TERMS": k,
