@@ -12,17 +12,12 @@
 import { parseGeometry, projectLatlongHalf, rotateLightingY } from './prt.js';
 import { loadSources } from './shaders.js';
 import { capLight, addLighting, sphereGeometry, tangentField, tangentLines, windowLighting } from './sh_lights.js';
+import { LineOverlay } from './line_overlay.js';
 import { SHADER_FILES, SHTableGL } from './sh_table.js';
 import { tableRgb, transferLayout, viewProjection } from './sh_table_data.js';
 
 const DEFAULT_BRDF = 'ashikhmin-shirley:nu=48,nv=16,rs=0.05,rd=0';
 const TIMED_FRAMES = 20;
-const LINES_VS = `#version 300 es
-in vec3 a_position; uniform mat4 u_view_projection;
-void main() { gl_Position = u_view_projection * vec4(a_position, 1.0); gl_Position.z -= 0.002; }`;
-const LINES_FS = `#version 300 es
-precision mediump float; out vec4 o_color; void main() { o_color = vec4(0.1, 1.0, 0.4, 1.0); }`;
-
 function controls() {
   const cap = (k, on, az, el, sr, colour) => `<fieldset><legend>area light ${k + 1}</legend>
     <label><input type="checkbox" id="brushed-cap${k}-on"${on ? ' checked' : ''}> on</label>
@@ -229,33 +224,8 @@ export function initBrushed(state, $, showError) {
     return performance.now() - t0;
   }
 
-  let linesProg = null;
-  function drawLines(vp) {
-    if (!linesProg) {
-      linesProg = gl.createProgram();
-      for (const [type, src] of [[gl.VERTEX_SHADER, LINES_VS], [gl.FRAGMENT_SHADER, LINES_FS]]) {
-        const sh = gl.createShader(type);
-        gl.shaderSource(sh, src);
-        gl.compileShader(sh);
-        gl.attachShader(linesProg, sh);
-      }
-      gl.linkProgram(linesProg);
-    }
-    gl.useProgram(linesProg);
-    gl.uniformMatrix4fv(gl.getUniformLocation(linesProg, 'u_view_projection'), false, vp);
-    const vao = gl.createVertexArray();
-    gl.bindVertexArray(vao);
-    const buf = gl.createBuffer();
-    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
-    gl.bufferData(gl.ARRAY_BUFFER, panel.lines, gl.STREAM_DRAW);
-    const loc = gl.getAttribLocation(linesProg, 'a_position');
-    gl.enableVertexAttribArray(loc);
-    gl.vertexAttribPointer(loc, 3, gl.FLOAT, false, 0, 0);
-    gl.drawArrays(gl.LINES, 0, panel.lines.length / 3);
-    gl.bindVertexArray(null);
-    gl.deleteBuffer(buf);
-    gl.deleteVertexArray(vao);
-  }
+  const overlay = new LineOverlay(gl);
+  const drawLines = (vp) => overlay.draw(vp, panel.lines);
 
   function record(mode, ms) {
     const s = (panel.samples[mode] = panel.samples[mode] || []);
