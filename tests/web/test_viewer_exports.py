@@ -1,10 +1,12 @@
 """The viewer's engine-export panel (issue 17, item 9) in Chromium against a live server: every download button
-saves exactly the API's bytes (GET /envmaps/{id}/ibl, read here with httpx), and the side-by-side draws
+saves exactly the API's bytes (GET /envmaps/{id}/ibl, read here with httpx; a single SH convention's file holds
+exactly that convention's numbers of the API's sh.json), and the side-by-side draws
 relight's chain and three's PMREM (both rows lit) with their relative RMS per roughness, the numbers of
 tests/web/test_three_package_browser.py (within 5 % for r >= 0.25)."""
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import httpx
@@ -20,19 +22,28 @@ pytestmark = [pytest.mark.timeout(900)]
 
 def test_download_buttons_and_side_by_side(page: Any, viewer_server: Server, tmp_path: Any) -> None:
     env_id = upload_map(page, tmp_path)
-    page.wait_for_function("document.querySelectorAll('#exports-buttons button').length === 5", timeout=30_000)
+    page.wait_for_function("document.querySelectorAll('#exports-buttons button').length === 10", timeout=30_000)
     queries = page.evaluate("Array.from(document.querySelectorAll('#exports-buttons button'))"
                             ".map(b => b.dataset.export)")
-    assert queries == [f"target={t}&format=ktx2" for t in ("three", "filament", "gltf", "babylon")] + ["format=sh"]
+    conventions = ["three", "gltf", "filament", "babylon", "raw"]
+    assert queries == ([f"target={t}&format=ktx2" for t in ("three", "filament", "gltf", "babylon")] + ["format=sh"]
+                       + [f"format=sh&convention={c}" for c in conventions])
     with httpx.Client(base_url=viewer_server.url, timeout=60) as http:
         for q in queries:
             with page.expect_download(timeout=300_000) as dl:
                 page.click(f"#exports-buttons button[data-export='{q}']")
             saved = dl.value.path().read_bytes()
-            api = http.get(f"/envmaps/{env_id}/ibl?{q}")
+            api = http.get(f"/envmaps/{env_id}/ibl?{q.split('&convention=')[0]}")
             assert api.status_code == 200, api.text
-            assert saved == api.content, f"{q}: the download differs from the API's bytes"
-            assert dl.value.suggested_filename.endswith(".json" if q == "format=sh" else ".ktx2")
+            if "convention=" in q:  # one convention's entry of the API's sh.json, as `relight sh` names its fields
+                conv = q.split("=")[-1]
+                doc = json.loads(saved)
+                assert doc["convention"] == conv
+                assert doc["coefficients"] == api.json()["sh9"][conv]["coefficients"]
+                assert doc["quantity"] == api.json()["sh9"][conv]["quantity"]
+            else:
+                assert saved == api.content, f"{q}: the download differs from the API's bytes"
+            assert dl.value.suggested_filename.endswith(".json" if "format=sh" in q else ".ktx2")
     page.click("#exports-compare")
     page.wait_for_function("window.relight.exportsPanel.rms !== null", timeout=300_000)
     rms = page.evaluate("window.relight.exportsPanel.rms")

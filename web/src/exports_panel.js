@@ -7,14 +7,30 @@ import * as THREE from 'three';
 import { drawSideBySide, ROUGHNESS } from './engine_compare.js';
 
 export const TARGETS = ['three', 'filament', 'gltf', 'babylon'];
+export const CONVENTIONS = ['three', 'gltf', 'filament', 'babylon', 'raw'];
 
-/** Every export of map `id`: [label, file name, query string]. */
+/**
+ * Every export of map `id`: [label, file name, query string, SH convention or null]. A convention's file is its
+ * entry of the API's sh.json (`relight sh --convention C`'s fields: convention, quantity, coefficients).
+ */
 export function exportList(id) {
   const short = id.slice(0, 12);
   return [
-    ...TARGETS.map((t) => [`KTX2 ${t}`, `${short}-${t}.ktx2`, `target=${t}&format=ktx2`]),
-    ['SH9 (all conventions)', `${short}-sh9.json`, 'format=sh'],
+    ...TARGETS.map((t) => [`KTX2 ${t}`, `${short}-${t}.ktx2`, `target=${t}&format=ktx2`, null]),
+    ['SH9 (all conventions)', `${short}-sh9.json`, 'format=sh', null],
+    ...CONVENTIONS.map((c) => [`SH9 ${c}`, `${short}-sh9-${c}.json`, 'format=sh', c]),
   ];
+}
+
+/** One convention's document from the API's sh.json bytes. */
+export function conventionDocument(shJsonBytes, convention) {
+  const doc = JSON.parse(new TextDecoder().decode(shJsonBytes));
+  const entry = doc.sh9?.[convention];
+  if (!entry) {
+    throw new Error(`sh.json has no ${convention} coefficients`);
+  }
+  return { convention, quantity: entry.quantity, coefficients: entry.coefficients, source: doc.source ?? null,
+    sun: doc.sun ?? null };
 }
 
 /** GET the export, waiting while its job runs (202 + Retry-After); the file's bytes. */
@@ -67,16 +83,19 @@ export function initExports(state, $, showError) {
       box.textContent = 'upload an environment map';
       return;
     }
-    for (const [label, name, query] of exportList(id)) {
+    for (const [label, name, query, convention] of exportList(id)) {
       const b = document.createElement('button');
       b.type = 'button';
       b.textContent = label;
-      b.dataset.export = query;
+      b.dataset.export = convention ? `${query}&convention=${convention}` : query;
       b.addEventListener('click', async () => {
         showError('exports-error', null);
         try {
           status(`${label}: computing`);
-          const bytes = await fetchExport(state.api, id, query, (job) => status(`${label}: ${job.state}`));
+          let bytes = await fetchExport(state.api, id, query, (job) => status(`${label}: ${job.state}`));
+          if (convention) {
+            bytes = new TextEncoder().encode(`${JSON.stringify(conventionDocument(bytes, convention), null, 2)}\n`);
+          }
           saveAs(bytes, name, name.endsWith('.json') ? 'application/json' : 'image/ktx2');
           panel.downloads += 1;
           status(`${label}: ${bytes.length} bytes`);
