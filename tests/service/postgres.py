@@ -12,7 +12,7 @@ import shutil
 import socket
 import subprocess
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import psycopg
@@ -51,6 +51,12 @@ class Postgres:
         self._ctl("-m", "immediate", "stop")
         shutil.rmtree(self.root, ignore_errors=True)
 
+    def new_database(self, name: str) -> str:
+        """Create the database ``name``; its SQLAlchemy URL."""
+        with psycopg.connect(f"postgresql://relight@127.0.0.1:{self.port}/postgres", autocommit=True) as c:
+            c.execute(f'CREATE DATABASE "{name}"')
+        return f"postgresql+psycopg://relight@127.0.0.1:{self.port}/{name}"
+
     def count(self, sql: str) -> int:
         with psycopg.connect(f"postgresql://relight@127.0.0.1:{self.port}/relight") as c:
             row = c.execute(sql).fetchone()
@@ -75,3 +81,22 @@ def start_postgres() -> Postgres:
     with psycopg.connect(f"postgresql://relight@127.0.0.1:{pg.port}/postgres", autocommit=True) as c:
         c.execute("CREATE DATABASE relight")
     return pg
+
+
+@dataclass
+class Backend:
+    """The database of the service tests' servers: ``sqlite`` (the server's default, a file in its data directory)
+    or ``postgresql``: one database per data directory on one PostgreSQL server, so a server restarted on its data
+    directory finds its database again, as with SQLite (:func:`tests.service.support.start_server`)."""
+
+    name: str
+    pg: Postgres | None = None
+    _urls: dict[Path, str] = field(default_factory=dict)
+
+    def env_for(self, data_dir: Path) -> dict[str, str]:
+        if self.pg is None:
+            return {}
+        key = data_dir.resolve()
+        if key not in self._urls:
+            self._urls[key] = self.pg.new_database(f"relight_{len(self._urls)}")
+        return {"RELIGHT_DATABASE_URL": self._urls[key]}

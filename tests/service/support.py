@@ -16,13 +16,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import httpx
 import numpy as np
 from httpx_sse import connect_sse
 
 from relight.client.sdk import RelightClient
+
+if TYPE_CHECKING:
+    from .postgres import Backend
 
 REPO = Path(__file__).resolve().parents[2]
 URL_LINE = re.compile(r"relight: serving (http://\S+)")
@@ -139,11 +142,15 @@ class Server(Proc):
         return RelightClient(self.url, timeout=60.0, **kw)
 
 
-def start_server(data_dir: Path, extra_env: dict[str, str] | None = None, log_name: str = "server.log") -> Server:
+def start_server(data_dir: Path, extra_env: dict[str, str] | None = None, log_name: str = "server.log",
+                 database: Backend | None = None) -> Server:
+    """A server on ``data_dir``; on ``database`` when given (:class:`tests.service.postgres.Backend`: SQLite in the
+    data directory, or the PostgreSQL database of this data directory), else SQLite."""
     data_dir.mkdir(parents=True, exist_ok=True)
     args = [sys.executable, "-m", "relight.cli", "serve", "--host", "127.0.0.1", "--port", "0", "--data",
             str(data_dir), "--no-preload"]
-    server = Server(args=args, env=base_env(extra_env), log=data_dir / log_name)
+    env = {**(database.env_for(data_dir) if database is not None else {}), **(extra_env or {})}
+    server = Server(args=args, env=base_env(env), log=data_dir / log_name)
     server.start()
     try:
         return server.wait_ready()

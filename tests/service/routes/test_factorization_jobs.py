@@ -17,14 +17,15 @@ from PIL import Image
 from relight.brdf.spec import parse_brdf
 from relight.factor_analysis import analyse, factor_image
 
+from ..postgres import Backend
 from ..support import assert_problem, start_server, wait_done
 
 pytestmark = pytest.mark.timeout(300)
 
 
 @pytest.fixture(scope="module")
-def http(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
-    server = start_server(tmp_path_factory.mktemp("factorization"))
+def http(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[httpx.Client]:
+    server = start_server(tmp_path_factory.mktemp("factorization"), database=database)
     try:
         with httpx.Client(base_url=server.url, timeout=60) as c:
             yield c

@@ -18,15 +18,16 @@ from relight.envmap import read_envmap
 from relight.gaussian_chain import RATIOS, build_chain
 from relight.sgfit import FitSettings, fit_gaussian_lobes
 
+from ..postgres import Backend
 from ..support import assert_problem, exr_bytes, make_envmap, start_server, wait_done
 
 pytestmark = pytest.mark.timeout(300)
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+def served(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[dict[str, Any]]:
     data = tmp_path_factory.mktemp("gaussian")
-    server = start_server(data)
+    server = start_server(data, database=database)
     exr = exr_bytes(make_envmap(32, seed=5), data)
     try:
         with httpx.Client(base_url=server.url, timeout=60) as http:

@@ -19,15 +19,16 @@ from relight.engine_export import chain_export, sh_export, without_seconds
 from relight.envmap import read_envmap
 from relight.ktx2 import read_ktx2
 
+from ..postgres import Backend
 from ..support import assert_problem, exr_bytes, make_envmap, start_server, wait_until
 
 pytestmark = pytest.mark.timeout(600)
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+def served(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[dict[str, Any]]:
     data = tmp_path_factory.mktemp("ibl")
-    server = start_server(data)
+    server = start_server(data, database=database)
     exr = exr_bytes(make_envmap(32, seed=11), data)
     path = data / "map.exr"
     path.write_bytes(exr)

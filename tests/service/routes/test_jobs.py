@@ -7,6 +7,7 @@ import pytest
 
 from relight.client.sdk import RelightClient
 
+from ..postgres import Backend
 from ..support import assert_healthy, assert_problem
 
 pytestmark = pytest.mark.timeout(120)
@@ -56,10 +57,10 @@ def test_list_and_finished_job_cannot_be_cancelled(client: RelightClient, http: 
     assert "event: end" in events.text and '"succeeded"' in events.text
 
 
-def test_metrics_and_health(http: httpx.Client) -> None:
+def test_metrics_and_health(http: httpx.Client, database: Backend) -> None:
     text = http.get("/metrics").text
     for name in ('relight_jobs{state="succeeded"}', "relight_job_duration_seconds_count", "relight_cache_hits_total",
                  "relight_workers"):
         assert name in text, name
     h = http.get("/health").json()
-    assert h["status"] == "ok" and h["workers"] == 2 and h["database"] == "sqlite"
+    assert h["status"] == "ok" and h["workers"] == 2 and h["database"] == database.name

@@ -26,6 +26,7 @@ from httpx_sse import ServerSentEvent, connect_sse
 from relight.worker.blobs import BlobStore
 from relight.worker.results import existing_result
 
+from ..postgres import Backend
 from ..support import Server, assert_problem, exr_bytes, make_envmap, start_server, wait_until
 
 pytestmark = pytest.mark.timeout(300)
@@ -61,9 +62,9 @@ WORK_STAGE = {"shrm": "prefiltering", "tradeoff": "sweeping", "scene": "running"
 
 
 @pytest.fixture(scope="module")
-def slow(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+def slow(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[dict[str, Any]]:
     data = tmp_path_factory.mktemp("kinds")
-    state: dict[str, Any] = {"data": data, "server": start_server(data, ENV)}
+    state: dict[str, Any] = {"data": data, "database": database, "server": start_server(data, ENV, database=database)}
     with httpx.Client(base_url=state["server"].url, timeout=60) as http:
         r = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=31), data))
         assert r.status_code in (200, 201), r.text
@@ -166,12 +167,12 @@ def test_each_kind_cancels_mid_run(slow: dict[str, Any], http: httpx.Client, kin
     assert http.delete(f"{delete}/{job_id}").json()["state"] == "cancelled"  # idempotent
 
 
-def test_the_active_job_cap_is_atomic(tmp_path_factory: pytest.TempPathFactory) -> None:
+def test_the_active_job_cap_is_atomic(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> None:
     """20 concurrent submissions of distinct jobs under a cap of 4: exactly 4 accepted, 16 answered 429 with
     Retry-After; cancelling frees the slots for the next ones. (Its own server, whose jobs wait long enough that
     none can finish while the submissions are answered, however loaded the machine.)"""
     data = tmp_path_factory.mktemp("cap")
-    server = start_server(data, {**ENV, "RELIGHT_TEST_JOB_DELAY_S": str(CAP_DELAY_S)})
+    server = start_server(data, {**ENV, "RELIGHT_TEST_JOB_DELAY_S": str(CAP_DELAY_S)}, database=database)
     try:
         with httpx.Client(base_url=server.url, timeout=60) as http:
             env = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=32), data)).json()["id"]
@@ -216,7 +217,8 @@ def test_every_kind_resumes_after_a_server_restart(slow: dict[str, Any]) -> None
 
         wait_until(two_running, 60, "two jobs to run")
     server.kill()  # SIGKILL: server, scheduler and workers die at once
-    slow["server"] = restarted = start_server(slow["data"], ENV, log_name="server2.log")
+    slow["server"] = restarted = start_server(slow["data"], ENV, log_name="server2.log",
+                                               database=slow["database"])
     with httpx.Client(base_url=restarted.url, timeout=60) as http:
         for kind, job_id in ids.items():
             final = json.loads([e for e in events(http, f"/jobs/{job_id}/events")][-1].data)

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 from httpx_sse import connect_sse
 
+from ..postgres import Backend
 from ..support import assert_problem, exr_bytes, make_envmap, start_server, wait_until
 
 pytestmark = pytest.mark.timeout(300)
@@ -32,9 +33,9 @@ ENV = {"RELIGHT_TEST_JOB_DELAY_S": str(DELAY_S), "RELIGHT_MAX_ACTIVE_JOBS": str(
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+def served(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[dict[str, Any]]:
     data = tmp_path_factory.mktemp("submit")
-    server = start_server(data, ENV)
+    server = start_server(data, ENV, database=database)
     try:
         with httpx.Client(base_url=server.url, timeout=60) as http:
             r = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=41), data))

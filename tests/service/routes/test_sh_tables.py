@@ -20,15 +20,17 @@ from relight.brdf.models import TorranceSparrow
 from relight.brdf.spec import parse_frame_brdf
 from relight.sh_table import build_table
 
+from ..postgres import Backend
 from ..support import assert_problem, start_server, wait_until
 
 pytestmark = pytest.mark.timeout(300)
 
 
 @pytest.fixture(scope="module")
-def http(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
+def http(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[httpx.Client]:
     # uploads up to 64 MiB: a MERL file is 34,992,012 bytes (the suite's default cap is 1 MiB)
-    server = start_server(tmp_path_factory.mktemp("sh-tables"), {"RELIGHT_MAX_UPLOAD_BYTES": str(64 << 20)})
+    server = start_server(tmp_path_factory.mktemp("sh-tables"), {"RELIGHT_MAX_UPLOAD_BYTES": str(64 << 20)},
+                          database=database)
     try:
         with httpx.Client(base_url=server.url, timeout=60) as c:
             yield c
