@@ -50,7 +50,7 @@ def compute_component(plan: Plan, comp: Computation) -> Any:
     if choice.structure == "radial":
         coeffs = lpq.brdf_coefficients(choice.lobe, f_b, 0)  # rho_hat_l00 = sqrt(4 pi) rho_l (exact)
     else:
-        coeffs = choice.coefficients
+        coeffs = choice.coefficients_to(f_b, p_b)
     rho = coeffs.rho[: f_b + 1, : p_b + 1, : min(coeffs.Q, p_b) + 1]
     terms = terms_for(choice.structure, p_b)  # type: ignore[arg-type]
     maps = synthesize_local(plan.lighting.alm, plan.lighting.lmax, rho, terms, s)

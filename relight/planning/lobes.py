@@ -8,9 +8,11 @@
 * **general** isotropic lobe -> the full ``(P + 1)^2``-map SHRM (§4).
 
 Orders follow the core exactly: ``spectrum_for_tolerance`` and ``relight.prefilter.choose_orders`` for radial lobes
-(as ``prefilter_radial``), App. C's whole-lobe search (``lpq_search.cached_select_orders``; ``create_shrm`` searches
-per view band instead, ``relight.shrm.order_search``) and ``relight.shrm.predicted_errors`` for the others, with
-``F_B = min(F_rho, F_L, H - 1)`` (minimum-of-orders rule, §5.1).
+(as ``prefilter_radial``), the view-band order search of ``create_shrm`` and ``plan_job`` for the others
+(``relight.shrm.order_search.cached_search``, the tolerance held in every view band with N.V >= the grazing limit;
+about a second per material, cached; App. C's whole-lobe search took minutes for a Torrance–Sparrow lobe, issue 16)
+and ``relight.shrm.predicted_errors`` on the search's spectrum, with ``F_B = min(F_rho, F_L, H - 1)``
+(minimum-of-orders rule, §5.1).
 """
 
 from __future__ import annotations
@@ -52,17 +54,32 @@ class LobeChoice:
     reason: str
     f_rho: int
     p_rho: int
-    eps_rho: float  # the lobe's uncaptured energy at (F_rho, P_rho)
+    eps_rho: float  # the lobe's uncaptured energy at (F_rho, P_rho) (SHRM lobes: the worst enforced view band)
     eps_rho_below: dict[str, float]  # at F_rho - 1 (and P_rho - 1)
     probes: tuple[tuple[int, int], ...] | None
-    coefficients: Any  # lpq.BRDFCoefficients (SHRM lobes) or RadialSpectrum
+    coefficients: Any  # lpq.BRDFCoefficients (SHRM lobes: the search's tabulation) or RadialSpectrum
+    edges: tuple[float, ...] | None = None  # the view bands of the search (SHRM lobes)
+    search: dict[str, Any] | None = None  # the search's verdict (SHRM lobes: tolerance met, unmet bands, ...)
+
+    def coefficients_to(self, f_order: int, p_order: int) -> Any:
+        """SHRM coefficients covering (F, P): the search's own tabulation, or, when the search extrapolated beyond
+        it (``order_search`` step 2), the lobe's view spectrum at the orders found, as ``create_shrm`` does."""
+        from relight.shrm import order_search
+
+        c = self.coefficients
+        if c.F >= f_order and c.P >= p_order:
+            return c
+        assert self.edges is not None
+        return order_search.cached_spectrum(self.lobe, max(self.f_rho, f_order), max(self.p_rho, p_order),
+                                            self.edges).coefficients()
 
 
 def choose(lobe: Lobe, epsilon: float) -> LobeChoice:
     """Smallest orders meeting ``epsilon`` for one lobe: ``spectrum_for_tolerance`` for radial lobes (as
-    ``prefilter_radial``), App. C's whole-lobe search (``lpq_search.cached_select_orders``) otherwise."""
-    from relight.brdf import lpq_search
+    ``prefilter_radial``), the view-band search of ``create_shrm`` (``order_search.cached_search``) otherwise."""
     from relight.brdf.coefficients import spectrum_for_tolerance
+    from relight.settings import SETTINGS
+    from relight.shrm import order_search
 
     representation, structure, reason = representation_of(lobe)
     if isinstance(lobe, RadialLobe):
@@ -71,14 +88,16 @@ def choose(lobe: Lobe, epsilon: float) -> LobeChoice:
         below = {"F_rho_minus_1": float(eps[f_rho - 1]) if f_rho > 0 else 1.0}
         return LobeChoice(lobe, representation, structure, reason, f_rho, 0, float(eps[min(f_rho, spec.lmax)]),
                           below, None, spec)
-    sel, _ = lpq_search.cached_select_orders(lobe, epsilon)
-    table = sel.coefficients.epsilon_table()
-    below = {"F_rho_minus_1": float(table[sel.F - 1, sel.P]) if sel.F > 0 else 1.0,
-             "P_rho_minus_1": float(table[sel.F, sel.P - 1]) if sel.P > 0 else 1.0}
-    probes = tuple((int(h["F"]), int(h["P"])) for h in sel.history)
-    p_rho = 0 if structure == "radial" else sel.P
-    return LobeChoice(lobe, representation, structure, reason, sel.F, p_rho, float(sel.epsilon_achieved), below,
-                      probes, sel.coefficients)
+    res, _ = order_search.cached_search(lobe, epsilon, grazing_limit=SETTINGS.grazing_limit, structure=structure)
+    p_rho = 0 if structure == "radial" else res.P
+    below = {"F_rho_minus_1": order_search.enforced_epsilon(res, res.F - 1, res.P),
+             "P_rho_minus_1": order_search.enforced_epsilon(res, res.F, res.P - 1)}
+    probes = tuple((int(q["F"]), int(q["P"])) for q in res.probes)
+    return LobeChoice(lobe, representation, structure, reason, res.F, p_rho,
+                      order_search.enforced_epsilon(res, res.F, res.P), below, probes,
+                      res.spectrum.coefficients(), res.edges,
+                      {k: v for k, v in res.as_dict().items() if k in (
+                          "tolerance_met", "grazing_limit", "unmet_bands", "achievable_by_view")})
 
 
 def predicted_radial(choice: LobeChoice, lighting: Any, epsilon: float, f_cap: int) -> tuple[int, int | None, dict[
@@ -104,4 +123,6 @@ def predicted_shrm(choice: LobeChoice, lighting: Any, epsilon: float, f_cap: int
 
     f_l = order_for_tolerance(lighting.band_energy(), lighting.total_energy, epsilon)
     f_b = min(choice.f_rho, f_cap, f_l if f_l is not None else choice.f_rho)
-    return f_b, f_l, predicted_errors(choice.coefficients, lighting, f_b, choice.p_rho)
+    # beyond the search's tabulation (order_search step 2) the prediction reads its F0, as plan_job does
+    coeffs = choice.coefficients
+    return f_b, f_l, predicted_errors(coeffs, lighting, min(f_b, coeffs.F), choice.p_rho)

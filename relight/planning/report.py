@@ -50,6 +50,9 @@ class Computation(Report):
     predicted: dict[str, float]
     shared_by: list[str] = field(default_factory=list)
     order_search_probes: list[list[int]] | None = None
+    #: SHRM lobes: the view-band order search's verdict (``relight.shrm.order_search.BandSearch.as_dict``:
+    #: ``tolerance_met``, ``grazing_limit``, ``unmet_bands``, ``achievable_by_view``), as ``create_shrm`` reports it
+    order_search: dict[str, Any] | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)

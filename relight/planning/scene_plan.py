@@ -210,7 +210,7 @@ def _plan_at(
                     representation=c.representation, structure=c.structure, reason=c.reason, F_rho=c.f_rho,
                     P_rho=c.p_rho, F_L=f_l, F_B=f_b, P_B=c.p_rho, n_maps=n, n_coefficients=(f_b + 1) ** 2 * n,
                     size=s, epsilon_rho=c.eps_rho, epsilon_rho_below=c.eps_rho_below, predicted=errors,
-                    order_search_probes=[list(p) for p in c.probes] if c.probes else None,
+                    order_search_probes=[list(p) for p in c.probes] if c.probes else None, order_search=c.search,
                 )
             computations[ck].shared_by.append(obj.name)
             comps.append(computations[ck])

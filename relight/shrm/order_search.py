@@ -233,6 +233,18 @@ def search_orders(
     )
 
 
+def enforced_epsilon(search: BandSearch, f_order: int, p_order: int) -> float:
+    """The worst enforced band's predicted uncaptured energy at (F, P), from the search's own tabulation and its
+    step-2 tail model: the figure :func:`search_orders` holds to the tolerance (1.0 below order 0 or beyond the
+    tabulated P)."""
+    spec = search.spectrum
+    if f_order < 0 or p_order < 0 or p_order > spec.P:
+        return 1.0
+    eps = _extrapolate(*_band_model(spec, p_order, spec.band_energy_per_view()), f_order)
+    on = np.asarray(search.enforced, dtype=bool)
+    return float(eps[on].max()) if on.any() else 0.0
+
+
 # ------------------------------------------------------------------------------------------------- caching
 # bounded caches keyed by the lobe's spec (relight.brdf.lobe_cache; its clear() empties them)
 _spectra: LRUCache[str, ViewSpectrum] = lobe_cache()

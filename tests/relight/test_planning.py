@@ -2,8 +2,8 @@
 viewer-distance rule, time budgets, and the measured error of a planned run against the angular reference.
 
 References: closed forms of the lobes' spectra (Phong: ``relight.brdf.coefficients.phong_transfer``, Lambert: the
-clamped cosine's ``A_l``), App. C's coefficient tables, the radial prefilter run on its own (its own projection)
-and the brute-force angular reference (``relight.reference_view``). Sample maps area-averaged to 32 x 64.
+clamped cosine's ``A_l``), the view-band order search checked on a finer tabulation, the radial prefilter run on its
+own (its own projection) and the brute-force angular reference (``relight.reference_view``). Sample maps area-averaged to 32 x 64.
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ import numpy as np
 import pytest
 
 from relight import costmodel, planning
-from relight.brdf import lpq
 from relight.brdf.coefficients import lambda_l, lambert_transfer, phong_transfer
 from relight.brdf.spec import parse_brdf
 from relight.envmap import read_envmap, resample_latlong, write_exr
@@ -159,15 +158,49 @@ def test_azimuthally_symmetric_lobe_keeps_q0_terms_only() -> None:
 
 
 def test_general_lobe_full_shrm_at_minimal_f_and_p() -> None:
-    eps = 0.01
+    """The planner's orders are create_shrm's (the view-band search of relight.shrm.order_search, issue 18) and
+    minimal: on an independent finer tabulation (oversample 2; its epsilon agrees with the search's grid to 2e-4,
+    relight.brdf.lpq, test_view_bands) every enforced view band holds the tolerance at (F, P) and some band fails
+    it at (F - 1, P) and at (F, P - 1) (a P - 1 meeting it at the same F would cost less, so the search would
+    have taken it)."""
+    from relight.settings import SETTINGS
+    from relight.shrm import order_search
+    from relight.shrm.view_bands import brdf_band_epsilon
+    from relight.shrm.view_spectrum import view_spectrum
+
+    eps, tol = 0.02, 2e-4
+    lobe = parse_brdf("microfacet:sigma=0.35")
     p = plan([obj("microfacet:sigma=0.35", view=[0.2, 0.6, 0.7])], epsilon=eps)
     (c,) = p.report.computations
     f, pp = c.F_rho, c.P_rho
     assert c.representation == "shrm" and c.n_maps == (pp + 1) ** 2 == (c.P_B + 1) ** 2
-    table = lpq.brdf_coefficients(parse_brdf("microfacet:sigma=0.35"), f + 2, pp + 2).epsilon_table()  # type: ignore[arg-type]
-    # minimal: the tolerance holds at (F, P) and fails at (F - 1, P) and at (F, P - 1)
-    assert table[f, pp] <= eps < table[f - 1, pp]
-    assert table[f, pp - 1] > eps
+    res = order_search.search_orders(lobe, eps, grazing_limit=SETTINGS.grazing_limit)
+    assert (f, pp) == (res.F, res.P) and res.met and pp >= 1
+    assert c.order_search is not None and c.order_search["tolerance_met"] is True
+    fine = view_spectrum(lobe, f + 2, pp + 2, edges=res.edges, oversample=2.0)
+    on = np.asarray(res.enforced)
+    assert np.all(brdf_band_epsilon(fine, pp)[f][on] <= eps + tol)
+    assert np.max(brdf_band_epsilon(fine, pp)[f - 1][on]) > eps - tol
+    assert np.max(brdf_band_epsilon(fine, pp - 1)[f][on]) > eps - tol
+    # the stated epsilon_rho is the worst enforced band at (F, P), as the search predicts it
+    assert c.epsilon_rho == pytest.approx(float(np.max(np.asarray(res.band_epsilon)[on])), rel=1e-9)
+
+
+def test_general_lobe_says_which_view_band_misses_the_tolerance() -> None:
+    """At epsilon = 0.01 a sigma = 0.35 microfacet lobe's 0.1 <= N.V < 0.2 band is out of reach of P <= 16 (on an
+    independent finer tabulation its smallest figure over F <= 64 is above 0.01 by more than the grids' 2e-4): the
+    plan says which band misses the tolerance, as create_shrm does."""
+    from relight.shrm.view_bands import brdf_band_epsilon
+    from relight.shrm.view_spectrum import band_edges, view_spectrum
+
+    (c,) = plan([obj("microfacet:sigma=0.35", view=[0.2, 0.6, 0.7])], epsilon=0.01).report.computations
+    assert c.order_search is not None and c.order_search["tolerance_met"] is False
+    assert c.order_search["unmet_bands"] == [[0.1, 0.2]]
+    edges = band_edges(0.1)
+    i = edges.index(0.1)
+    fine = view_spectrum(parse_brdf("microfacet:sigma=0.35"), 64, 16, edges=edges, oversample=2.0)
+    best = min(float(brdf_band_epsilon(fine, p)[:, i].min()) for p in range(17))
+    assert best > 0.01 + 2e-4, best
 
 
 def test_sum_of_lobes_each_at_its_own_orders() -> None:
