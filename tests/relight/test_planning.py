@@ -3,7 +3,8 @@ viewer-distance rule, time budgets, and the measured error of a planned run agai
 
 References: closed forms of the lobes' spectra (Phong: ``relight.brdf.coefficients.phong_transfer``, Lambert: the
 clamped cosine's ``A_l``), the view-band order search checked on a finer tabulation, the radial prefilter run on its
-own (its own projection) and the brute-force angular reference (``relight.reference_view``). Sample maps area-averaged to 32 x 64.
+own (its own projection) and the brute-force angular reference (``relight.reference_view``). Sample maps
+area-averaged to 32 x 64.
 """
 
 from __future__ import annotations
