@@ -26,7 +26,10 @@ ENTRY_POINTS = {
 #: The service commands' options, as they were when client/cli.py registered all of them.
 SERVICE_OPTIONS = {
     "serve": {"--host", "--port", "--data", "--workers", "--scheduler", "--preload", "--no-preload"},
-    "worker": {"--scheduler", "--nthreads", "--name", "--memory-limit", "--host", "--no-nanny"},
+    "worker": {"--scheduler", "--nthreads", "--name", "--memory-limit", "--host", "--no-nanny", "--tls-ca-file",
+               "--tls-cert", "--tls-key"},
+    # issue 12, item 7: the scale-out cluster on TLS (docker/compose.yaml runs these)
+    "scheduler": {"--host", "--port", "--tls-ca-file", "--tls-cert", "--tls-key"},
     "upload": {"--name", "--server", "--api-key", "--timeout", "--json"},
     "submit": {"--brdf", "--epsilon", "--order", "--p-order", "--size", "--wait", "--wait-timeout", "--out",
                "--server", "--api-key", "--timeout", "--json", "--sun"},
