@@ -8,6 +8,7 @@ full-stack-fastapi-template style.
 from __future__ import annotations
 
 import math
+from datetime import datetime
 from enum import StrEnum
 from typing import Annotated, Any
 
@@ -63,6 +64,8 @@ class Health(Public):
     database: str
     problems: list[str] = Field(default_factory=list,
                                 description="what is degraded: workers, scheduler, database, disk")
+    probed_at: datetime | None = Field(None, description="when the probes behind this answer ran (they run in the "
+                                                         "background, every second by default)")
 
 
 def parse_view(text: str) -> tuple[float, float, float]:

@@ -47,6 +47,8 @@ class Settings(BaseSettings):
                                     "computes for this many CPU seconds, so a test can catch plans in flight")
     min_free_bytes: int = Field(256 * MiB, ge=0, description="free disk below this in the blob store: /health "
                                 "says degraded")
+    health_interval_s: float = Field(1.0, gt=0, le=60, description="seconds between the background health probes "
+                                     "(database, scheduler, disk) that /health answers from")
     max_active_jobs: int = Field(64, ge=1, description="queued + running jobs; more answer 429")
     decode_timeout_s: float = Field(120.0, gt=0, description="time limit for decoding one upload in a worker")
     blob_cache_bytes: int = Field(256 * MiB, ge=0, description="verified result bytes kept in memory for GETs")

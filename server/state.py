@@ -17,6 +17,7 @@ from relight.server.services.brdfs import BrdfService
 from relight.server.services.calibration import CalibrationService
 from relight.server.services.envmaps import EnvmapService
 from relight.server.services.events import EventHub
+from relight.server.services.health import HealthMonitor
 from relight.server.services.jobs import JobService
 from relight.server.services.meshes import MeshService
 from relight.server.services.metrics import Metrics
@@ -60,6 +61,7 @@ class Services:
     meshes: MeshService
     visibility: VisibilityService
     calibration: CalibrationService
+    health: HealthMonitor
     background: list[asyncio.Task[None]] = field(default_factory=list)
 
     @classmethod
@@ -89,7 +91,9 @@ class Services:
         self = cls(settings, db, store, cluster, hub, metrics, envmaps, brdfs, plans, jobs, shrms=shrms,
                    tradeoffs=TradeoffService(jobs, envmaps, brdfs), scenes=SceneService(jobs, envmaps, brdfs, meshes),
                    render=RenderService(settings, store, cluster, envmaps, shrms, meshes), meshes=meshes,
-                   visibility=VisibilityService(jobs, meshes, store), calibration=calibration)
+                   visibility=VisibilityService(jobs, meshes, store), calibration=calibration,
+                   health=HealthMonitor(settings, db, store, cluster))
+        await self.health.start()
         jobs.start()
         cluster.subscribe(TOPIC, jobs.on_event)
         await jobs.resume()  # every kind: the kinds registered themselves when their services were imported
@@ -126,6 +130,7 @@ class Services:
         for t in self.background:
             t.cancel()
         await asyncio.gather(*self.background, return_exceptions=True)
+        await self.health.close()
         await self.jobs.close()
         await self.render.close()
         await self.calibration.close()

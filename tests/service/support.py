@@ -208,6 +208,25 @@ def assert_problem(resp: httpx.Response, status: int, *fragments: str) -> dict[s
     return body
 
 
+def fresh_health(http: httpx.Client, timeout: float = 60.0) -> dict[str, Any]:
+    """``/health`` from a probe round that began after this call: the probes run in the background (every
+    ``RELIGHT_HEALTH_INTERVAL_S``), so the answer after an event may predate it; two new rounds seen means the second
+    started after the first ended, which was after the call."""
+    from datetime import UTC, datetime
+
+    start = datetime.now(UTC)
+    rounds: set[str] = set()
+
+    def newer() -> dict[str, Any] | None:
+        h: dict[str, Any] = http.get("/health").json()
+        if datetime.fromisoformat(h["probed_at"]) > start:
+            rounds.add(h["probed_at"])
+        return h if len(rounds) >= 2 else None
+
+    found: dict[str, Any] = wait_until(newer, timeout, "two health probe rounds", interval=0.1)
+    return found
+
+
 def assert_healthy(http: httpx.Client) -> None:
     r = http.get("/health")
     assert r.status_code == 200, r.text

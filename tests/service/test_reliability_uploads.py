@@ -16,7 +16,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from .support import Server, assert_problem, exr_bytes, make_envmap, start_server
+from .support import Server, assert_problem, exr_bytes, fresh_health, make_envmap, start_server
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -120,7 +120,7 @@ def test_exr_header_bombs_are_refused_and_nothing_is_stored(uploader: Server, uh
     body = assert_problem(uh.post("/envmaps", content=make()), 422, *fragments)
     assert "Error" not in body["detail"]  # words, not an exception's name
     assert stored(uploader, uh) == before
-    assert uh.get("/health").json()["workers"] == 2
+    assert fresh_health(uh)["workers"] == 2
 
 
 def test_corrupt_exr_chunks_say_what_is_wrong(uploader: Server, uh: httpx.Client, tmp_path: Path) -> None:
@@ -144,4 +144,4 @@ def test_worst_case_rle_hdr_at_the_pixel_limit_decodes(uploader: Server, uh: htt
     assert (info["width"], info["height"]) == (2048, 1024)
     np.testing.assert_allclose(info["max"], [128.5 / 256] * 3, rtol=1e-6)
     np.testing.assert_allclose(info["min"], [128.5 / 256] * 3, rtol=1e-6)
-    assert uh.get("/health").json()["workers"] == 2
+    assert fresh_health(uh)["workers"] == 2
