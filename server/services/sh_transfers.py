@@ -67,10 +67,34 @@ async def _prepare(create: ShTransferCreate, services: Services) -> dict[str, An
     mesh = await services.meshes.get(create.mesh)
     table = await prepare_table(ShTableCreate(brdf=create.brdf, order=create.order, resolution=create.resolution),
                                 services)
+    _grey_only(table["brdf"])
     geometry = {"sha256": mesh.geometry["sha256"], "vertices": mesh.vertices, "faces": mesh.faces}
     return {"mesh": mesh.id, "geometry": geometry, "brdf": table["brdf"],
             "tangent": create.tangent.model_dump(mode="json", exclude_none=True),
             **create.model_dump(mode="json", exclude={"mesh", "brdf", "tangent"})}
+
+
+def _measured(spec: Any) -> bool:
+    """Whether a canonical spec holds a measured (MERL) term anywhere (the service's ``{"kind": "merl", ...}``)."""
+    if isinstance(spec, dict):
+        return spec.get("kind") == "merl" or any(_measured(v) for v in spec.values())
+    if isinstance(spec, list):
+        return any(_measured(v) for v in spec)
+    return False
+
+
+def _grey_only(spec: Any) -> None:
+    """422 for a coloured BRDF before any job exists: its bounces differ per channel (one matrix per vertex holds
+    one channel; the worker refuses such a table too). A measured (MERL) BRDF is RGB by its format."""
+    from relight.brdf.spec import parse_frame_brdf
+    from relight.server.problems import Unprocessable
+
+    if _measured(spec):
+        raise Unprocessable("brdf: a measured BRDF is RGB, and a coloured BRDF's interreflections differ per "
+                            "channel; sh_transfer takes a grey BRDF")
+    if int(parse_frame_brdf(spec).channels) != 1:
+        raise Unprocessable("brdf: a coloured BRDF's interreflections differ per channel; sh_transfer takes a grey "
+                            "BRDF (one value per parameter)")
 
 
 SH_TRANSFER = register(JobKind("sh_transfer", compute_sh_transfer, request=ShTransferCreate, prepare=_prepare))

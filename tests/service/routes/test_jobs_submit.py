@@ -231,6 +231,23 @@ def test_bad_submissions_name_what_is_wrong(http: httpx.Client) -> None:
     assert_problem(http.get(f"/jobs/{'f' * 64}/result"), 404)
 
 
+def test_a_coloured_brdf_for_interreflections_is_a_422_and_no_job(served: dict[str, Any], http: httpx.Client
+                                                                    ) -> None:
+    """sh_transfer holds one matrix per vertex: a coloured BRDF (its bounces differ per channel) is refused before a
+    job exists, naming the BRDF, as any other bad parameter; the grey form of the same material is accepted."""
+    before = http.get("/jobs").json()
+    base = {"mesh": served["mesh"], "order": 1, "resolution": 4, "rays": 16}
+    coloured = [{"kind": "ward", "rho_d": 0.1, "rho_s": [0.5, 0.3, 0.2], "alpha": 0.2},
+                [{"kind": "lambert", "albedo": [0.8, 0.5, 0.2]}, {"kind": "phong", "s": 8}]]
+    for brdf in coloured:
+        assert_problem(http.post("/jobs", json={"kind": "sh_transfer", "request": {**base, "brdf": brdf}}),
+                       422, "brdf", "grey")
+    assert http.get("/jobs").json() == before
+    grey = http.post("/jobs", json={"kind": "sh_transfer", "request": {**base, "brdf": "ward:rho_d=0.1,rho_s=0.5,"
+                                                                                       "alpha=0.2"}})
+    assert grey.status_code in (200, 202), grey.text
+
+
 def test_the_sdks_submit_any_kind(served: dict[str, Any]) -> None:
     """``RelightClient.submit_job`` / ``job_result`` / ``job_file`` and their async twins."""
     import anyio
