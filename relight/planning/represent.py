@@ -19,7 +19,9 @@ alternatives with why they lost, and the frame budget may move a lobe down its l
    ``F_MAX`` is exact to epsilon; else ``gaussian_lobes`` with seed 002's SH visibility (approximate: visibility
    constant over each lobe). ``shadows: approximate`` goes to ``gaussian_lobes`` directly.
 5. **Live material edits**: ``gaussian_lobes`` (the lobes are the material: edits cost nothing).
-6. **Otherwise**: seed 000 — ``reflection_map`` (radial), ``shrm_q0`` (no azimuthal dependence), ``shrm``.
+6. **Otherwise**: seed 000 — ``reflection_map`` (radial), ``shrm_q0`` (no azimuthal dependence), ``shrm``; when
+   the lighting or the lobe is band-limited enough that order ``F_MAX`` is exact to epsilon, ``sh_table`` is the
+   next candidate (exact too; the frame budget may pick it).
 
 ``sh_table`` and ``gaussian_lobes`` are also the fallbacks a frame budget can choose (they are cheaper per frame
 than PRT and in-out terms). The in-out renderer (issue 16 item 3) is executed only where it exists on this
@@ -148,7 +150,11 @@ def candidates(case: LobeCase) -> list[Candidate]:
     if case.edited:
         return [_why(gauss, "material edited live: Gaussian lobes are the material (seed 002 §1: edits without "
                      "reprocessing); the chain is shared"), seed000]
-    return [seed000, _why(gauss, "fallback: one shared chain + a ~1 KB fit")]
+    banded = ([Candidate("sh_table", f"band-limited enough: order F = {exact} is exact to the tolerance (min of the "
+                         f"lighting's F_L = {case.f_l} and the lobe's F_rho = {case.f_rho}), so an SH table (seed "
+                         "003) is exact too; under static lighting seed 000 comes first (exact at any frequency, no "
+                         "per-vertex rotation)", {"F": exact})] if exact is not None else [])
+    return [seed000, *banded, _why(gauss, "fallback: one shared chain + a ~1 KB fit")]
 
 
 def _why(c: Candidate, reason: str) -> Candidate:

@@ -168,6 +168,21 @@ def test_dynamic_lighting_tables_when_exact_else_gaussian_lobes() -> None:
     assert r["sharp"].representation == "gaussian_lobes" and "dynamic lighting" in r["sharp"].reason
 
 
+def test_static_band_limited_lobes_list_the_exact_table_after_seed_000() -> None:
+    """Issue 15's clause for isotropic lobes under static lighting: when order F <= F_MAX is exact to the tolerance
+    the SH table is listed (second, with its F and why seed 000 comes first); a sharp lobe gets none."""
+    p = plan([obj("phong:s=8", "low"), obj("phong:s=2000", "sharp")])
+    r = reps(p)
+    f_l = planning.scene_plan.order_for_tolerance(p.lighting.band_energy(), p.lighting.total_energy, EPS)
+    expect = min(phong_order(8, EPS), f_l if f_l is not None else 99)
+    assert r["low"].representation == "reflection_map"
+    tables = [a for a in r["low"].alternatives if a.representation == "sh_table"]
+    assert tables and f"order F = {max(expect, 2)} is exact" in tables[0].why_not
+    assert r["low"].alternatives[0].representation == "sh_table"
+    assert r["sharp"].representation == "reflection_map"
+    assert not any(a.representation == "sh_table" for a in r["sharp"].alternatives)
+
+
 def test_glossy_shadows_exact_inout_when_available_else_listed(monkeypatch: pytest.MonkeyPatch) -> None:
     objs = [obj("phong:s=4", "soft", shape="bunny", shadows="exact"), obj(GLOSSY, "glossy", shape="bunny"),
             obj(GLOSSY, "approx", shape="bunny", shadows="approximate")]
