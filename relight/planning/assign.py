@@ -114,6 +114,7 @@ def evaluate(part: Part, cand: Candidate, ctx: Context) -> tuple[LobeRepresentat
         f = int(terms["F"]) if "F" in terms else predict.table_order(loss, eps)[0]
         err = float(loss[f])
         parts = {"order_truncation": err}
+        kind = "approximate"  # an average over views and lighting orientations (represent.ORIENTATION_AVERAGE)
         n = (f + 1) ** 2
         res = TABLE_RESOLUTION_ISO if part.isotropic else TABLE_RESOLUTION_ANISO
         from relight.brdf.spec import parse_frame_brdf

@@ -72,3 +72,13 @@ def measure_lobes(plan: Plan, name: str, size: int = 24) -> list[dict[str, Any]]
             entry["measured"] = float(np.sqrt(np.sum(d * d) / np.sum(ref[mask] ** 2)))
         out.append(entry)
     return out
+
+
+def within_prediction(entry: dict[str, Any]) -> bool:
+    """Issue 16's rule for one measured lobe (an entry of :func:`measure_lobes` or ``relight.planning.measure_mesh
+    .measure_mesh_lobes``): measured, and either within its predicted error or marked ``approximate`` (the measured
+    value stands next to the prediction in the entry)."""
+    measured = entry["measured"]
+    if measured is None:
+        return False
+    return bool(measured <= entry["predicted"] or entry["error_kind"] == "approximate")

@@ -368,7 +368,8 @@ def format_plan(plan: Plan) -> str:
             terms = ", ".join(f"{k} = {v}" for k, v in r.terms.items() if k != "anisotropic")
             lines.append(f"    {r.kind}: {r.representation} (seed {r.seed}; {terms}), shadows {r.shadows}, predicted "
                          f"relative RMS {r.predicted_error:.3g} ({r.error_kind}), {r.predicted_precompute_s:.3g} s, "
-                         f"{r.per_frame_ms:.3g} ms per frame" + ("" if r.executed else " [not executed]"))
+                         f"{r.per_frame_ms:.3g} ms per frame" + ("" if r.executed else " [not executed]")
+                         + ("" if r.note is None else f"; {r.note}"))
         for e in o.effects:
             lines.append(f"    {'+' if e.simulated else '-'} {e.effect}: {e.reason}")
     for j in d.jobs:

@@ -152,21 +152,27 @@ def test_job_files_equal_the_core_computations(run: tuple[planning.Plan, Path, A
 
 
 # ------------------------------------------------------------------------------------------------ measured on meshes
-def test_mesh_representations_measured_within_predicted(tmp_path: Path) -> None:
+def test_mesh_representations_measured_within_predicted_or_marked_approximate(tmp_path: Path) -> None:
     """Issue 16 item 4: each mesh object's measured error (relight.planning.measure_mesh: the run's per-vertex data
     shaded as the renderers do, against the per-vertex brute force over every map pixel with ray-cast visibility)
-    is within the plan's predicted relative RMS. Measured here (2026-11-28): diffuse transfer 0.086 against 0.198
-    predicted, in-out PRT (K = 9) 0.071 against 0.570. Not asserted: the anisotropic PRT matrix (brushed metal,
-    F = 6, 1024 rays) measures 0.338 against 0.280 predicted on this floor, and its order truncation alone (V = 1,
-    the same table) 0.381 against 0.174: the table's predicted error is an average over view elevations and
-    lighting orientations, while a flat floor is one view of one orientation (F = 8: 0.19; 8192 rays change
-    nothing) — open in issue 16's report."""
+    is within the plan's predicted relative RMS, or the plan marks it approximate and the measured value stands next
+    to the prediction (relight.planning.measure.within_prediction). Measured here (2026-11-28): diffuse transfer
+    0.086 against 0.198 predicted, in-out PRT (K = 9) 0.071 against 0.570 (both bounded); the anisotropic PRT matrix
+    (brushed metal, F = 6, 1024 rays) 0.338 against 0.280, its order truncation alone (V = 1, the same table) 0.381
+    against 0.174: the table's prediction is an average over view elevations and lighting orientations
+    (relight.planning.predict), a flat floor one view of one orientation (F = 8: 0.19; 8192 rays change nothing),
+    so the plan marks it approximate (relight.planning.represent.ORIENTATION_AVERAGE) — the check fails if it did
+    not."""
+    from relight.planning.measure import within_prediction
     from relight.planning.measure_mesh import measure_mesh_lobes
+    from relight.planning.represent import ORIENTATION_AVERAGE
 
     mesh = str(floor_glb(tmp_path / "floor.glb"))
+    tangent = {"kind": "project", "direction": [1, 0, 0]}
     scene = planning.scene_from_dict({"environment": "courtyard", "epsilon": EPS, "size": 8, "objects": [
         obj("lambert:albedo=0.7", "floor", mesh=mesh, shadows="exact"),
-        obj("phong:s=4", "soft", mesh=mesh, shadows="exact")]})
+        obj("phong:s=4", "soft", mesh=mesh, shadows="exact"),
+        obj(BRUSHED, "brushed_floor", mesh=mesh, shadows="exact", tangent=tangent)]})
     px = np.asarray(resample_latlong(read_envmap(DATA / "courtyard.exr").pixels, 32), dtype=np.float64)
     plan = planning.plan_scene(scene, px, calibration=costmodel.default_calibration())
     run = planning.run_plan(plan, write=False)
@@ -175,5 +181,10 @@ def test_mesh_representations_measured_within_predicted(tmp_path: Path) -> None:
         for m in measure_mesh_lobes(plan, run, o.name):
             seen[m["representation"]] = m
             assert m["measured"] is not None and m["vertices"] > 50, (o.name, m)
-            assert m["error_kind"] == "bounded" and m["measured"] <= m["predicted"], (o.name, m)
-    assert set(seen) == {"diffuse_transfer", "inout_prt"}
+            assert within_prediction(m), (o.name, m)
+    assert set(seen) == {"diffuse_transfer", "inout_prt", "prt_matrix"}
+    for rep in ("diffuse_transfer", "inout_prt"):  # bounded predictions hold as bounds
+        assert seen[rep]["error_kind"] == "bounded" and seen[rep]["measured"] <= seen[rep]["predicted"], seen[rep]
+    brushed = next(o for o in plan.report.objects if o.name == "brushed_floor").representations[0]
+    assert brushed.error_kind == "approximate" and ORIENTATION_AVERAGE in (brushed.note or "")
+    assert "(approximate), " in planning.format_plan(plan) and ORIENTATION_AVERAGE in planning.format_plan(plan)
