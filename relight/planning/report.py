@@ -96,8 +96,8 @@ class LobeRepresentation(Report):
     seed, why, its terms (orders, K, coefficients), the shadows it simulates, the predicted relative RMS error
     (``error_kind``: ``bounded`` by the tolerance's rules, or ``approximate`` where no bound exists and tests
     measure it: seed 002's shadows, and SH tables and PRT matrices, whose prediction is an average over views and
-    lighting orientations) with its parts, the predicted precompute seconds of its jobs (before sharing) and milliseconds per
-    frame, the jobs (ids of ``ScenePlan.jobs``) and the alternatives."""
+    lighting orientations) with its parts, the predicted precompute seconds of its jobs (before sharing) and
+    milliseconds per frame, the jobs (ids of ``ScenePlan.jobs``) and the alternatives."""
 
     lobe: Any
     kind: str
