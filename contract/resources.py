@@ -19,8 +19,13 @@ class EnvmapPublic(Public):
     name: str | None = None
     format: str = Field(description="exr, hdr, png or jpeg")
     layout: str = Field(description="latlong, or the cube-map layout that was resampled")
-    width: int
+    width: int = Field(description="width of the stored map (what jobs use)")
     height: int
+    source_width: int | None = Field(None, description="width of the uploaded file; larger than width when a "
+                                     "lat-long EXR above the server's max_pixels was streamed and downsampled")
+    source_height: int | None = None
+    stored_sha256: str | None = Field(None, description="blob of the stored map: the upload itself, or its "
+                                      "area-exact downsample (float32 EXR) when it was streamed")
     bytes: int
     min: list[float] = Field(description="per-channel minimum (after clamping negatives)")
     max: list[float]

@@ -35,7 +35,12 @@ class Settings(BaseSettings):
     max_upload_bytes: int = Field(256 * MiB, ge=1, description="largest file body (uploads)")
     max_json_bytes: int = Field(8 * MiB, ge=1, description="largest JSON body (a lobe1d table of 65536 RGB samples "
                                 "is about 5 MiB)")
-    max_pixels: int = Field(4096 * 2048, ge=1, description="largest environment map (width x height)")
+    max_pixels: int = Field(4096 * 2048, ge=1, description="largest environment map decoded whole (width x height); "
+                            "jobs decode maps of at most this size")
+    max_stream_pixels: int = Field(16384 * 8192, ge=1, description="largest lat-long EXR upload accepted above "
+                                   "max_pixels: streamed in scanline chunks into its area-exact downsample to the "
+                                   "largest lat-long map within max_pixels (issue 17, item 8), worker peak memory "
+                                   "under relight.worker.tasks.stream_memory_bound")
     max_order: int = Field(1024, ge=0, description="largest order F a job may use")
     max_p_order: int = Field(16, ge=0, description="largest view order P a job may use")
     max_size: int = Field(2048, ge=2, description="largest output rows S")

@@ -35,7 +35,7 @@ MEDIA_TYPES = {".exr": "image/x-exr", ".json": "application/json", ".png": "imag
 def _pixels(store: BlobStore, digest: str, max_pixels: int | None, rows: int | None) -> np.ndarray:
     from relight.envmap import read_envmap, resample_latlong
 
-    env = read_envmap(store.read(digest), max_pixels=max_pixels)
+    env = read_envmap(store.read(store.stored_envmap(digest)), max_pixels=max_pixels)
     px = np.asarray(env.pixels, dtype=np.float64)
     if rows is not None and rows < px.shape[0]:
         px = np.asarray(resample_latlong(px, rows), dtype=np.float64)

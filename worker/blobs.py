@@ -99,6 +99,11 @@ class BlobWriter:
         self.tmp_path.unlink(missing_ok=True)
 
 
+def stored_envmap_ref(digest: str) -> str:
+    """Ref naming the stored downsample of a streamed upload (:meth:`BlobStore.stored_envmap`)."""
+    return f"envmap-stored-{check_digest(digest)}"
+
+
 class BlobStore:
     """See the module docstring."""
 
@@ -274,6 +279,12 @@ class BlobStore:
             self._forget(digest)
             raise BlobCorrupt(f"blob {digest} is corrupt (its bytes hash to {actual}); removed")
         return data
+
+    def stored_envmap(self, digest: str) -> str:
+        """The blob that jobs decode for the uploaded map ``digest``: the area-exact downsample the upload's
+        analysis stored when the file was too large to decode whole (issue 17, item 8), else the upload itself."""
+        stored = self.get_ref(stored_envmap_ref(digest))
+        return stored if stored is not None and self.has(stored) else digest
 
     # -- refs ------------------------------------------------------------------------------------------------
     def _ref_path(self, name: str) -> Path:

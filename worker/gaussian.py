@@ -126,7 +126,7 @@ def compute_gaussian_chain(ctx: JobContext, request: dict[str, Any]) -> dict[str
 
     t0 = time.perf_counter()
     ctx.report("loading", 0.05)
-    env = read_envmap(ctx.store.read(request["envmap"]), max_pixels=ctx.max_pixels)
+    env = read_envmap(ctx.store.read(ctx.store.stored_envmap(request["envmap"])), max_pixels=ctx.max_pixels)
     ctx.report("prefiltering", 0.2)
     chain = build_chain(env.pixels, sigma0=request.get("sigma0"), ratio=RATIOS[request["ratio"]],
                         levels=request.get("levels"), epsilon=float(request["epsilon"]),

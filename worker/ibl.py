@@ -24,7 +24,7 @@ def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
 
     t0 = time.perf_counter()
     ctx.report("loading", 0.05)
-    env = read_envmap(ctx.store.read(request["envmap"]), max_pixels=ctx.max_pixels)
+    env = read_envmap(ctx.store.read(ctx.store.stored_envmap(request["envmap"])), max_pixels=ctx.max_pixels)
     source = {"envmap": request["envmap"], "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
     ctx.report("prefiltering", 0.2)
     if request["format"] == "ktx2":

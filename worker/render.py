@@ -25,7 +25,8 @@ def reference_image(store_root: str, envmap_digest: str, brdf_spec: Any, view: l
     """(size, size, 3) brute-force image of the sphere lit by the uploaded map ``envmap_digest``."""
     from relight.gl.views import reference_sphere_image
 
-    path = str(BlobStore(store_root).path(envmap_digest))
+    store = BlobStore(store_root)
+    path = str(store.path(store.stored_envmap(envmap_digest)))
     return reference_sphere_image(path, brdf_spec, view, size, env_rows=env_rows, max_pixels=max_pixels)
 
 
@@ -36,7 +37,8 @@ def mesh_reference(store_root: str, envmap_digest: str, geometry_digest: str, ve
 
     store = BlobStore(store_root)
     geometry = store.verified_path(geometry_digest).read_bytes()
-    return mesh_reference_image(str(store.path(envmap_digest)), geometry, vertices, faces, view, size, **kw)
+    envmap = str(store.path(store.stored_envmap(envmap_digest)))
+    return mesh_reference_image(envmap, geometry, vertices, faces, view, size, **kw)
 
 
 def envmap_texture(store_root: str, envmap_digest: str, rows: int, *,
@@ -44,4 +46,5 @@ def envmap_texture(store_root: str, envmap_digest: str, rows: int, *,
     """The uploaded map ``envmap_digest`` as little-endian float16 RGB: (bytes, height, width)."""
     from relight.gl.views import envmap_texture as texture
 
-    return texture(str(BlobStore(store_root).path(envmap_digest)), rows, max_pixels=max_pixels)
+    store = BlobStore(store_root)
+    return texture(str(store.path(store.stored_envmap(envmap_digest))), rows, max_pixels=max_pixels)

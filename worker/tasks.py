@@ -48,23 +48,75 @@ def warmup() -> dict[str, Any]:
 # Environment maps
 
 
+def stored_rows(height: int, max_pixels: int) -> int:
+    """Rows of the stored downsample of a streamed lat-long upload: the largest lat-long map within
+    ``max_pixels`` (what jobs may decode), at most the file's height and the core's ``STREAM_ROWS``."""
+    from math import isqrt
+
+    from relight.envmap.environment import STREAM_ROWS
+
+    return max(1, min(height, STREAM_ROWS, isqrt(max_pixels // 2)))
+
+
+def stream_memory_bound(width: int, rows: int, spectrum_lmax: int) -> int:
+    """Bytes a streamed upload's analysis allocates above the worker's resident baseline, whatever the file's
+    height: the streaming buffers (:func:`relight.envmap.stream.memory_bound`, default chunking) plus, for the
+    ``rows x 2 rows`` stored map, :data:`STORED_COPIES` float64 RGB copies (the float32 map and its EXR write,
+    the float64 statistics, the SH projection's input and ducc0's map) and the spectrum's coefficients."""
+    from relight.envmap.stream import CHUNK_PIXELS, memory_bound
+
+    chunk_rows = max(1, CHUNK_PIXELS // width)
+    lmax = max(0, min(spectrum_lmax, rows - 1))
+    return (memory_bound(width, rows, chunk_rows) + STORED_COPIES * rows * 2 * rows * 3 * 8
+            + 4 * 3 * (lmax + 1) * (lmax + 2) // 2 * 16)
+
+
+#: float64 RGB copies of the stored map the analysis holds at most (:func:`stream_memory_bound`).
+STORED_COPIES = 8
+
+
+def _decode_upload(store: BlobStore, digest: str, max_pixels: int,
+                   max_stream_pixels: int | None) -> tuple[Any, int, int, str]:
+    """(the map jobs will use, the file's width and height, the stored blob): a lat-long EXR above ``max_pixels``
+    (and within ``max_stream_pixels``) is streamed from the stored file into its area-exact downsample to
+    :func:`stored_rows` rows, stored as a float32 EXR and named by the map's ref (``BlobStore.stored_envmap``);
+    anything else is decoded whole from the uploaded bytes."""
+    from relight.envmap import probe, read_envmap, write_exr
+    from relight.worker.blobs import stored_envmap_ref
+
+    path = store.verified_path(digest)
+    hdr = probe(path)
+    if max_stream_pixels is None or hdr.format != "exr" or hdr.width != 2 * hdr.height or hdr.pixels <= max_pixels:
+        env = read_envmap(store.read(digest), max_pixels=max_pixels)
+        return env, hdr.width, hdr.height, digest
+    env = read_envmap(path, max_pixels=max_stream_pixels, layout="latlong",
+                      max_rows=stored_rows(hdr.height, max_pixels))
+    with store.new_file(".exr") as tmp:
+        write_exr(tmp, env.pixels)
+        stored = store.put_file(tmp)
+    store.set_ref(stored_envmap_ref(digest), stored)
+    return env, hdr.width, hdr.height, stored
+
+
 def analyze_envmap(
-    store_root: str, digest: str, *, max_pixels: int, spectrum_lmax: int, preview_rows: int = PREVIEW_ROWS
+    store_root: str, digest: str, *, max_pixels: int, spectrum_lmax: int, preview_rows: int = PREVIEW_ROWS,
+    max_stream_pixels: int | None = None,
 ) -> dict[str, Any]:
     """Decode the uploaded map ``digest`` and describe it.
 
-    Returns format, size, layout, per-channel range and mean, the negative texels clamped, the luminance SH power
-    spectrum ``E_l`` (l <= min(spectrum_lmax, H - 1)) with the total energy, and the digest of a PNG preview.
+    Returns format, size (the stored map's and the file's), layout, per-channel range and mean, the negative texels
+    clamped, the luminance SH power spectrum ``E_l`` (l <= min(spectrum_lmax, H - 1)) with the total energy, and
+    the digests of the stored map and of a PNG preview. A lat-long EXR above ``max_pixels`` is streamed
+    (:func:`_decode_upload`, peak memory :func:`stream_memory_bound` above the worker's baseline).
     Raises ``relight.errors.InputError`` for anything the core rejects (non-finite pixels, bad size ...).
     """
-    from relight.envmap import read_envmap, resample_latlong, write_png_preview
+    from relight.envmap import resample_latlong, write_png_preview
     from relight.prefilter import project_lighting
 
     reporter = Reporter(f"envmap-{digest}")
     reporter.started()
     store = BlobStore(store_root)
-    data = store.read(digest)
-    env = read_envmap(data, max_pixels=max_pixels)
+    env, source_width, source_height, stored = _decode_upload(store, digest, max_pixels, max_stream_pixels)
     px = env.pixels
     h, w = env.height, env.width
     lmax = max(0, min(spectrum_lmax, h - 1))
@@ -80,6 +132,9 @@ def analyze_envmap(
         "layout": env.layout,
         "width": w,
         "height": h,
+        "source_width": source_width,
+        "source_height": source_height,
+        "stored_sha256": stored,
         "min": [float(v) for v in flat.min(axis=0)],
         "max": [float(v) for v in flat.max(axis=0)],
         "mean": [float(v) for v in flat.mean(axis=0)],
@@ -151,7 +206,7 @@ def compute_shrm(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
             return {"manifest_sha256": digest, "manifest": manifest, "reused": True,
                     "task_seconds": time.perf_counter() - t0, "compute_seconds": 0.0}
     report("loading", 0.5)
-    env = read_envmap(store.read(request["envmap"]), max_pixels=ctx.max_pixels)
+    env = read_envmap(store.read(store.stored_envmap(request["envmap"])), max_pixels=ctx.max_pixels)
     lobe = parse_brdf(to_core(request["brdf_spec"], store))
     params: dict[str, Any] = request.get("params", {})
     pixels: Any = env.pixels  # float32 as read, float64 after the sun step

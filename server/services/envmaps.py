@@ -5,7 +5,8 @@ Order of checks (each rejects before the next costs anything):
 1. ``Content-Length`` above the limit -> 413 before reading the body; bytes are counted while streaming too.
 2. Magic bytes of the first chunk -> 415 for anything but OpenEXR, Radiance RGBE, PNG or JPEG.
 3. Header only (``relight.envmap.probe``: pure Python, allocates nothing) -> 422 for a truncated header, more
-   pixels than ``max_pixels`` or an aspect that is neither lat-long (2:1) nor a cube-map layout.
+   pixels than ``max_pixels`` (``max_stream_pixels`` for a lat-long EXR, which is streamed into a downsample
+   within ``max_pixels``: issue 17, item 8) or an aspect that is neither lat-long (2:1) nor a cube-map layout.
 4. Decoding (``relight.worker.tasks.analyze_envmap``) in a Dask worker process, under the worker's memory limit and a
    time limit (the worker is restarted if decoding overruns) -> 422 for corrupt data or NaN/Inf texels.
 
@@ -43,13 +44,15 @@ log = logging.getLogger("relight.server")
 
 
 
-def check_header_size(width: int, height: int, max_pixels: int) -> None:
+def check_header_size(width: int, height: int, max_pixels: int, max_stream_pixels: int | None = None) -> None:
     """Reject sizes from the header alone (no allocation): too many pixels, or not an environment-map aspect."""
     from relight.envmap import CUBE_LAYOUTS
 
     pixels = width * height
     if pixels > max_pixels:
-        raise Unprocessable(f"image is {width} x {height} = {pixels} pixels; the limit is {max_pixels} pixels",
+        also = "" if max_stream_pixels is None or max_stream_pixels <= max_pixels else (
+            f" (lat-long EXR files, width = 2 x height, are streamed up to {max_stream_pixels} pixels)")
+        raise Unprocessable(f"image is {width} x {height} = {pixels} pixels; the limit is {max_pixels} pixels{also}",
                             width=width, height=height)
     cube = any(width * b == height * a and width % a == 0 for a, b in CUBE_LAYOUTS.values())
     if width != 2 * height and not cube:
@@ -124,9 +127,14 @@ class EnvmapService(ResourceService[Envmap, EnvmapPublic]):
             header = await in_thread(probe, writer.tmp_path)
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
-        check_header_size(header.width, header.height, self.settings.max_pixels)
+        s = self.settings
+        # a lat-long EXR above max_pixels is streamed into a downsample within max_pixels (tasks.analyze_envmap):
+        # its cap is max_stream_pixels; anything else is decoded whole and capped by max_pixels
+        streamed = header.format == "exr" and header.width == 2 * header.height and header.pixels > s.max_pixels
+        limit = s.max_stream_pixels if streamed else s.max_pixels
+        check_header_size(header.width, header.height, limit, s.max_stream_pixels)
         try:
-            check_max_pixels(header, self.settings.max_pixels)  # every part and level the decoder would allocate
+            check_max_pixels(header, limit)  # every part and level the decoder would allocate
         except InputError as exc:
             raise Unprocessable(str(exc)) from None
         existing = await in_thread(self._get_row, digest)
@@ -148,7 +156,7 @@ class EnvmapService(ResourceService[Envmap, EnvmapPublic]):
         s = self.settings
         fut = self.cluster.submit(
             tasks.analyze_envmap, str(self.store.root), digest, key=f"relight-analyze-{digest}",
-            max_pixels=s.max_pixels, spectrum_lmax=s.spectrum_lmax,
+            max_pixels=s.max_pixels, spectrum_lmax=s.spectrum_lmax, max_stream_pixels=s.max_stream_pixels,
         )
 
         async def restart() -> None:  # a decoder stuck in C code: restart its worker
