@@ -110,6 +110,9 @@ class JobPlan(Report):
     output: OutputShape
     predicted_seconds: float
     cost_model: JobCostModel
+    #: ``sun=extract`` with a tolerance: the sun's report and per lobe the order with and without it
+    #: (``relight.planning.sun_orders``).
+    sun: dict[str, Any] | None = field(default=None, metadata=OMIT_NONE)
 
     def to_json(self) -> dict[str, Any]:
         """Plain JSON (non-finite numbers as None, ``relight.jsonable``)."""
