@@ -79,6 +79,8 @@ export function initExports(state, $, showError) {
     const box = $('exports-buttons');
     box.textContent = '';
     const id = state.envmapId;
+    panel.shownFor = id;
+    box.dataset.envmap = id || ''; // the map these buttons export (tests wait for it)
     if (!id) {
       box.textContent = 'upload an environment map';
       return;
@@ -136,9 +138,9 @@ export function initExports(state, $, showError) {
 
   panel.refresh = refresh;
   refresh();
+  // selectEnvmap calls panel.refresh() when the map changes; the poll catches any other change of state.envmapId
   const timer = setInterval(() => {
     if (panel.shownFor !== state.envmapId) {
-      panel.shownFor = state.envmapId;
       refresh();
     }
   }, 500);

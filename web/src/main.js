@@ -392,6 +392,7 @@ async function refreshEnvmaps(select) {
 
 async function selectEnvmap(id) {
   state.envmapId = id;
+  state.exportsPanel?.refresh(); // its download buttons export the selected map from now on
   materialChanged();
   try {
     const tex = await state.api.envmapTexture(id, 256);
