@@ -103,6 +103,8 @@ def run_scene(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
                                 "media_type": MEDIA_TYPES.get(path.suffix, "application/octet-stream")}
         objects = [_add_texture(store, Path(tmp) / entry.files.shrm, entry, files) if entry.files.shrm else entry
                    for entry in result.objects]
+        objects = [_add_prt(store, plan, Path(tmp), entry, files) if entry.files.transfer else entry
+                   for entry in objects]
         result = dataclasses.replace(result, objects=objects)
     out: dict[str, Any] = _jsonable({"plan": from_core(plan.report.to_json(), store),
                                      "result": from_core(result.to_json(), store), "files": files})
@@ -117,6 +119,17 @@ def _uploaded_meshes(store: BlobStore, geometry: dict[str, dict[str, Any]]) -> d
     return {mesh_id: mesh_geometry.from_bytes(store.read(g["sha256"]), int(g["vertices"]), int(g["faces"]),
                                               source=f"geometry {g['sha256']}")
             for mesh_id, g in geometry.items()}
+
+
+def _add_prt(store: BlobStore, plan: Any, tmp: Path, entry: ObjectResult,
+             files: dict[str, dict[str, Any]]) -> ObjectResult:
+    """The viewer's form of an object's diffuse transfer (``relight.worker.scene_prt``), for the plan's mesh."""
+    from relight.worker.scene_prt import add_transfer_texture
+
+    shadows = next(o.shadows for o in plan.report.objects if o.name == entry.name)
+    assert shadows is not None and entry.files.transfer is not None
+    return add_transfer_texture(store, (tmp / entry.files.transfer).read_bytes(), plan.meshes[shadows.mesh], entry,
+                                files)
 
 
 def _add_texture(store: BlobStore, shrm_path: Path, entry: ObjectResult,

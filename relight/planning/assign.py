@@ -143,9 +143,13 @@ def evaluate(part: Part, cand: Candidate, ctx: Context) -> tuple[LobeRepresentat
                                                                         "elevations": predict.FIT_ELEVATIONS},
                          costs.fit_features(predict.FIT_ELEVATIONS, nodes, predict.FIT_LOBES)))
         orders, rows, sig = predict.chain_levels(ctx.height, eps, ctx.f_l)
+        # every level at the sharpest level's size: the viewer and relight.gl.gaussian hold the chain in one
+        # texture array (build_chain(..., uniform_size=True, size_cap=size), relight.planning.run_jobs)
+        size = max(rows)
         jobs.append(_job("gaussian_chain", f"{ctx.scene.environment}:{eps:g}",
                          {"environment": ctx.scene.environment, "epsilon": eps, "ratio": "sqrt2",
-                          "levels": len(sig)}, costs.chain_features(ctx.height, ctx.width, orders, rows)))
+                          "levels": len(sig), "size": size},
+                         costs.chain_features(ctx.height, ctx.width, orders, [size] * len(rows))))
         if cand.shadows != "none":
             kind = "approximate"
             rays = rays_for(math.sqrt(eps), float(VISIBILITY_ORDER + 1))

@@ -253,6 +253,8 @@ class ObjectFiles(Report):
     texture: str | None = field(default=None, metadata=OMIT_NONE)
     #: the per-vertex shadowed transfer of a Lambertian mesh object (``relight.planning.shadows``)
     transfer: str | None = field(default=None, metadata=OMIT_NONE)
+    #: in the service, the viewer's form of that transfer (``relight.worker.scene_prt``: ``{name}.prt.json``)
+    prt: str | None = field(default=None, metadata=OMIT_NONE)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -9,7 +9,8 @@ plan job kind             core computation (parameters from the plan's job)     
                                                                                               material's spec),
                                                                                               ``P.lobes.bin``
 ``gaussian_chain``        ``relight.gaussian_chain.build_chain`` of the plan's map at the     ``P.json``,
-                          plan's tolerance and ratio                                          ``P.level_JJ.bin``
+                          plan's tolerance and ratio, every level at the plan's ``size``      ``P.level_JJ.bin``
+                          (one texture array: the viewer's and ``relight.gl.gaussian``'s)
 ``sh_table``              ``relight.sh_table.build_table`` (order, resolution)                ``P.npz``
 ``visibility``,           ``relight.visibility.compute_transfer`` of the object's mesh        ``P.npz``
 ``shadow_matrix``
@@ -56,7 +57,8 @@ def _chain(plan: Plan, job: PlannedJob) -> tuple[dict[str, Any], dict[str, bytes
     from relight.envmap import to_half_safe
     from relight.gaussian_chain import RATIOS, build_chain
 
-    chain = build_chain(plan.pixels, epsilon=float(job.params["epsilon"]), ratio=RATIOS[job.params["ratio"]])
+    chain = build_chain(plan.pixels, epsilon=float(job.params["epsilon"]), ratio=RATIOS[job.params["ratio"]],
+                        uniform_size=True, size_cap=int(job.params["size"]))
     files: dict[str, bytes] = {}
     levels = []
     for j, lv in enumerate(chain.levels):

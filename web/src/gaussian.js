@@ -82,6 +82,30 @@ export function uploadGaussian(gl, material, chain) {
   return { shape, weight, chain: tex, material, chainInfo: chain };
 }
 
+/**
+ * A chain as uploadGaussian and the viewer take it, from a gaussian_chain result (`{sigma0, ratio, levels: [{height,
+ * width}]}`, every level one size) and its levels' bytes (float16 RGB lat-long, row 0 = +Y): each level padded to
+ * RGBA (alpha 0, unused).
+ */
+export function chainFromLevels(result, rgbBuffers) {
+  const { height, width } = result.levels[0];
+  if (result.levels.some((lv) => lv.height !== height || lv.width !== width)) {
+    throw new Error('the chain\'s levels must share one size (one texture array)');
+  }
+  const levels = rgbBuffers.map((buffer, j) => {
+    const rgb = new Uint16Array(buffer);
+    if (rgb.length !== height * width * 3) {
+      throw new Error(`chain level ${j}: ${rgb.length} values; ${height} x ${width} RGB need ${height * width * 3}`);
+    }
+    const rgba = new Uint16Array(height * width * 4);
+    for (let p = 0; p < height * width; p += 1) {
+      rgba.set(rgb.subarray(3 * p, 3 * p + 3), 4 * p);
+    }
+    return rgba;
+  });
+  return { sigma0: result.sigma0, ratio: result.ratio, height, width, levels };
+}
+
 /** Bind the textures and the material's uniforms (the camera's are set by the caller). */
 export function bindGaussian(gl, prog, data) {
   gl.useProgram(prog);

@@ -9,7 +9,9 @@
 // levels, level_JJ.bin = float16 RGB lat-long). The sphere is drawn with web/shaders/gaussian*.glsl (gaussian.js) into
 // a float target, read back as linear radiance and shown through the CPU display transform (tonemap.js).
 // window.relight.gaussian exposes the state for tests: materials, current, edits, pixels(), requests.
-import { bindGaussian, cameraBasis, gaussianDefines, gaussianProgram, lobeSampling } from './gaussian.js';
+import {
+  bindGaussian, cameraBasis, chainFromLevels, gaussianDefines, gaussianProgram, lobeSampling,
+} from './gaussian.js';
 import { floatToHalf, halfToFloat } from './half.js';
 import { tonemapImage } from './tonemap.js';
 
@@ -289,20 +291,13 @@ export function initGaussianPanel(state, $, showError) {
     const body = { envmap: state.envmapId, ratio: 'sqrt2', epsilon: 1e-3, uniform_size: true };
     const job = await waitJob(await request('POST', '/jobs', { json: { kind: 'gaussian_chain', request: body } }));
     const result = await request('GET', `/jobs/${job.id}/result`);
-    const levels = [];
-    for (const lv of result.levels) {
-      const rgb = new Uint16Array(await request('GET', `/jobs/${job.id}/files/${lv.file}`, { as: 'arrayBuffer' }));
-      const rgba = new Uint16Array(lv.height * lv.width * 4);
-      for (let p = 0; p < lv.height * lv.width; p += 1) {
-        rgba.set(rgb.subarray(3 * p, 3 * p + 3), 4 * p);
-      }
-      levels.push(rgba);
-    }
+    const buffers = await Promise.all(result.levels.map((lv) => request('GET', `/jobs/${job.id}/files/${lv.file}`,
+      { as: 'arrayBuffer' })));
+    const chainData = chainFromLevels(result, buffers);
     sg.view = sg.view || new GaussianView();
-    sg.view.setChain({ sigma0: result.sigma0, ratio: result.ratio, height: result.levels[0].height,
-      width: result.levels[0].width, levels });
+    sg.view.setChain(chainData);
     sg.chain = job.id;
-    status(`chain: ${levels.length} levels of ${result.levels[0].height} rows`);
+    status(`chain: ${chainData.levels.length} levels of ${chainData.height} rows`);
     await redraw();
   }
 

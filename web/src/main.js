@@ -5,8 +5,9 @@ import { compare } from './compare.js';
 import { initInOut } from './inout_panel.js';
 import { modelsFromOpenapi, specFor } from './materials.js';
 import { loadFile, loadSample } from './objects.js';
-import { exampleScene, parseScene, sceneItems, showScene } from './scene.js';
-import { initGaussianPanel } from './gaussian_panel.js';
+import { exampleScene, parseScene, sceneItems, showScene, showSceneErrors } from './scene.js';
+import { chainFromLevels } from './gaussian.js';
+import { initGaussianPanel, materialFromLobes } from './gaussian_panel.js';
 import { initShadows } from './shadows.js';
 import { initShTables } from './sh_table_panel.js';
 import { initBrushed } from './brushed_panel.js';
@@ -33,6 +34,7 @@ const state = {
   tradeoffKey: null, // JSON of the material and map it was run for
   scene: null, // the last GET /scenes/{id} answer
   sceneShown: null, // id of the scene drawn in the 3-D view (null: the single object)
+  sceneErrors: [], // objects of that scene not drawn: {name, message} (a representation the viewer lacks)
 };
 window.relight = state;
 
@@ -353,11 +355,16 @@ async function runScene() {
 /** Every object of a finished scene in the 3-D view, each with its own SHRM and planned viewer. */
 async function showSceneIn3d(pub) {
   const shape = (name) => (name === 'sphere' ? 'sphere' : loadSample(name));
-  state.viewer.setSceneObjects(await sceneItems(pub, state.api, shape));
+  const { items, errors } = await sceneItems(pub, state.api, shape, { material: materialFromLobes,
+    chain: chainFromLevels });
+  showSceneErrors($('scene-plan'), errors);
+  state.sceneErrors = errors;
+  state.viewer.setSceneObjects(items);
   state.sceneShown = pub.id;
   $('scene-single').hidden = false;
-  $('overlay').textContent = `scene ${pub.scene?.name || pub.id.slice(0, 10)}: `
-    + `${state.viewer.sceneObjects.length} objects, each with its own SHRM`;
+  const drawn = new Set(items.map((it) => it.name)).size;
+  $('overlay').textContent = `scene ${pub.scene?.name || pub.id.slice(0, 10)}: ${drawn} objects, each with its `
+    + `chosen representation${errors.length ? ` (${errors.length} not drawn: see the Scene panel)` : ''}`;
 }
 
 /** Back to the current material on one object. */

@@ -47,6 +47,8 @@ export class PrtObject {
       u_ao: { value: null },
       u_output_size: { value: new THREE.Vector2(1, 1) },
     };
+    this.placement = new THREE.Matrix4(); // where the unit-ball mesh goes (a scene object: centre, radius)
+    this.normalise = new THREE.Matrix4();
     this.mesh = new THREE.Mesh(new THREE.BufferGeometry(), null);
     this.mesh.frustumCulled = false; // the shader places it (u_model), not three.js's object matrix
     this.mesh.visible = false;
@@ -68,9 +70,16 @@ export class PrtObject {
     const [lo, hi] = [info.bounds.min, info.bounds.max];
     const c = lo.map((v, k) => 0.5 * (v + hi[k]));
     const s = 1 / (info.bounding_radius > 0 ? info.bounding_radius : 1);
-    this.uniforms.u_model.value.set(s, 0, 0, -c[0] * s, 0, s, 0, -c[1] * s, 0, 0, s, -c[2] * s, 0, 0, 0, 1);
+    this.normalise.set(s, 0, 0, -c[0] * s, 0, s, 0, -c[1] * s, 0, 0, s, -c[2] * s, 0, 0, 0, 1);
+    this.uniforms.u_model.value.multiplyMatrices(this.placement, this.normalise);
     this.meshInfo = info;
     this.setVisibility(null, {});
+  }
+
+  /** Place the unit-ball mesh: centre [x, y, z] and bounding radius (a scene object); the origin and 1 by default. */
+  setPlacement(center, radius) {
+    this.placement.makeScale(radius, radius, radius).setPosition(...center);
+    this.uniforms.u_model.value.multiplyMatrices(this.placement, this.normalise);
   }
 
   /**

@@ -3,7 +3,7 @@
 // per object the server's render of that object's own SHRM (`{name}.sphere.png`, asked for with preview_size),
 // and the scene itself in the 3-D view: every object at its place, lit by its own SHRM (the float16 texture
 // `{name}.coefficients.bin` with its manifest `{name}.texture.json`), with the viewer (distant: eq. 12, near:
-// eq. 6) its plan chose.
+// eq. 6) its plan chose, or with the representation its plan chose for its lobes (sceneItems, scene_parts.js).
 
 /** Parse the textarea: a SceneCreate object; asks for sphere previews unless the scene says otherwise. */
 export function parseScene(text, envmapId) {
@@ -62,26 +62,119 @@ export function objectPosition(o) {
   return { x, z };
 }
 
+/** Representations drawn by the object's SHRM (seed 000: the run synthesises their lobes into one SHRM). */
+export const SHRM_REPRESENTATIONS = ['irradiance', 'reflection_map', 'shrm_q0', 'shrm'];
+/** Representations drawn by a part of their own (scene_parts.js). */
+export const PART_REPRESENTATIONS = ['gaussian_lobes', 'diffuse_transfer'];
+
+const json = (bytes) => JSON.parse(new TextDecoder().decode(bytes));
+
+/** The representations of an object's lobes (a plan before planner v2 has none: its object is one SHRM). */
+export function objectRepresentations(o) {
+  const reps = o.representations || [];
+  return reps.length ? reps.map((r) => r.representation) : ['shrm'];
+}
+
+async function shrmItem(pub, api, o, base) {
+  if (!o.files.texture || !o.files.coefficients_bin) {
+    throw new Error(`scene object ${o.name} has no viewer texture`);
+  }
+  const [manifestBytes, buffer] = await Promise.all([api.sceneFile(pub.id, o.files.texture),
+    api.sceneFile(pub.id, o.files.coefficients_bin)]);
+  return { ...base, kind: 'shrm', mode: o.viewer === 'near' ? 'near' : 'distant', manifest: json(manifestBytes),
+    buffer };
+}
+
+/** A Lambertian lobe's albedo as one number (the PRT shader's u_albedo); a coloured albedo is not drawn. */
+function greyAlbedo(name, lobe) {
+  const a = lobe?.albedo ?? 1;
+  const values = Array.isArray(a) ? a.map(Number) : [Number(a)];
+  if (!values.every((x) => x === values[0] && Number.isFinite(x))) {
+    throw new Error(`scene object ${name}: its diffuse transfer is drawn with one albedo, the lobe has ${a}`);
+  }
+  return values[0];
+}
+
+async function transferItem(pub, api, o, base) {
+  const rep = (o.representations || []).find((r) => r.representation === 'diffuse_transfer');
+  const albedo = greyAlbedo(o.name, rep?.lobe);
+  if (!o.files.prt) {
+    throw new Error(`scene object ${o.name} has no viewer form of its diffuse transfer (${o.name}.prt.json)`);
+  }
+  const prt = json(await api.sceneFile(pub.id, o.files.prt));
+  const [geometryBuffer, transferBuffer] = await Promise.all([api.sceneFile(pub.id, prt.geometry.name),
+    api.sceneFile(pub.id, prt.files['transfer.bin'].name)]);
+  return { ...base, kind: 'diffuse_transfer', prt, geometryBuffer, transferBuffer, albedo };
+}
+
+async function gaussianItem(pub, api, rep, base, loaders) {
+  const runs = (pub.result?.jobs || []).filter((j) => rep.jobs.includes(j.id));
+  const run = (kind) => {
+    const r = runs.find((j) => j.kind === kind);
+    if (!r?.executed) {
+      throw new Error(`scene object ${base.name}: its Gaussian lobes have no ${kind} job run`);
+    }
+    return r;
+  };
+  const [fit, chain] = [run('gaussian_fit'), run('gaussian_chain')];
+  const file = (r, suffix) => r.files.find((f) => f.endsWith(`.${suffix}`));
+  const [spec, lobes, levels] = await Promise.all([api.sceneFile(pub.id, file(fit, 'json')),
+    api.sceneFile(pub.id, file(fit, 'lobes.bin')),
+    Promise.all(chain.summary.levels.map((lv) => api.sceneFile(pub.id, file(chain, lv.file))))]);
+  const material = loaders.material({ material: json(spec), lobes: fit.summary.lobes,
+    elevations: fit.summary.elevations, errors: fit.summary.errors }, lobes);
+  return { ...base, kind: 'gaussian_lobes', material, chain: loaders.chain(chain.summary, levels) };
+}
+
 /**
- * The 3-D view's items of a finished scene (ShrmViewer.setSceneObjects): per object its centre, bounding radius,
- * planned viewer, geometry (`loadShape(shape)`: 'sphere' or a BufferGeometry in the unit ball) and SHRM texture.
- * Throws when an object has no texture (a scene stored before textures were part of the result).
+ * The 3-D view's items of a finished scene (ShrmViewer.setSceneObjects): per object, one item per way its lobes
+ * are drawn, each with the object's centre, bounding radius and geometry (`loadShape(shape)`: 'sphere' or a
+ * BufferGeometry in the unit ball): kind 'shrm' (the lobes of SHRM_REPRESENTATIONS: its SHRM texture and planned
+ * viewer), 'gaussian_lobes' (each such lobe: its fit and the plan's chain, through `loaders.material` and
+ * `loaders.chain`: gaussian_panel.js's materialFromLobes, gaussian.js's chainFromLevels) and 'diffuse_transfer'
+ * (the object's {name}.prt.json, geometry and transfer texture). An object's items after its first are `added`.
+ * Returns {items, errors}: an object with a representation the viewer cannot draw, or whose files are missing, is
+ * left out with its error ({name, message}); the others are drawn.
  */
-export async function sceneItems(pub, api, loadShape) {
+export async function sceneItems(pub, api, loadShape, loaders) {
   if (pub?.state !== 'succeeded') {
     throw new Error(`the scene is ${pub?.state}; only a finished scene can be shown`);
   }
-  const objects = sceneObjects(pub);
-  return Promise.all(objects.map(async (o) => {
-    if (!o.files.texture || !o.files.coefficients_bin) {
-      throw new Error(`scene object ${o.name} has no viewer texture`);
+  const done = await Promise.all(sceneObjects(pub).map(async (o) => {
+    try {
+      const kinds = objectRepresentations(o);
+      const unknown = kinds.filter((k) => !SHRM_REPRESENTATIONS.includes(k) && !PART_REPRESENTATIONS.includes(k));
+      if (unknown.length) {
+        throw new Error(`scene object ${o.name}: the viewer cannot draw representation ${unknown.join(', ')} `
+          + `(it draws ${[...SHRM_REPRESENTATIONS, ...PART_REPRESENTATIONS].join(', ')})`);
+      }
+      if (kinds.includes('diffuse_transfer') && kinds.some((k) => SHRM_REPRESENTATIONS.includes(k))) {
+        // the run's SHRM holds every computation of the object, the shadowed Lambertian lobe's irradiance too
+        throw new Error(`scene object ${o.name}: its SHRM also holds the unshadowed form of its diffuse-transfer `
+          + 'lobe; drawing both would count that lobe twice');
+      }
+      const shape = o.shape || 'sphere';
+      const several = new Set(kinds.map((k) => (SHRM_REPRESENTATIONS.includes(k) ? 'shrm' : k))).size > 1
+        || kinds.filter((k) => k === 'gaussian_lobes').length > 1;
+      // several parts on the analytic sphere share one tessellated sphere, so that their depths agree
+      const base = { name: o.name, shape, center: objectCenter(o), radius: Number(o.size),
+        geometry: shape === 'sphere' && several ? 'sphere-mesh' : await loadShape(shape) };
+      const parts = [];
+      if (kinds.some((k) => SHRM_REPRESENTATIONS.includes(k))) {
+        parts.push(shrmItem(pub, api, o, base));
+      }
+      if (kinds.includes('diffuse_transfer')) {
+        parts.push(transferItem(pub, api, o, base));
+      }
+      for (const rep of (o.representations || []).filter((r) => r.representation === 'gaussian_lobes')) {
+        parts.push(gaussianItem(pub, api, rep, base, loaders));
+      }
+      return { items: (await Promise.all(parts)).map((it, k) => ({ ...it, added: k > 0 })) };
+    } catch (err) {
+      return { error: { name: o.name, message: err.message || String(err) } };
     }
-    const [manifestBytes, buffer, geometry] = await Promise.all([api.sceneFile(pub.id, o.files.texture),
-      api.sceneFile(pub.id, o.files.coefficients_bin), loadShape(o.shape || 'sphere')]);
-    const manifest = JSON.parse(new TextDecoder().decode(manifestBytes));
-    return { name: o.name, shape: o.shape || 'sphere', center: objectCenter(o), radius: Number(o.size),
-      mode: o.viewer === 'near' ? 'near' : 'distant', geometry, manifest, buffer };
   }));
+  return { items: done.flatMap((d) => d.items || []), errors: done.filter((d) => d.error).map((d) => d.error) };
 }
 
 /** A top-view SVG of the objects (circles of their bounding radius; log-spaced distances keep far ones visible). */
@@ -116,6 +209,16 @@ function el(tag, props = {}, ...children) {
   return node;
 }
 
+/** Under each object of the panel (showScene) that the 3-D view leaves out, why (sceneItems' errors). */
+export function showSceneErrors(box, errors) {
+  box.querySelectorAll('.scene-object-plan .scene-draw-error').forEach((n) => n.remove());
+  for (const e of errors) {
+    const item = [...box.querySelectorAll('.scene-object-plan')].find((n) => n.dataset.name === e.name);
+    const p = el('p', { className: 'error scene-draw-error', textContent: `not drawn in the 3-D view: ${e.message}` });
+    (item || box).append(p);
+  }
+}
+
 /** Fill `box` with the scene: state line, layout, and per object its summary, preview and effects. */
 export async function showScene(box, pub, api) {
   box.textContent = '';
@@ -135,6 +238,10 @@ export async function showScene(box, pub, api) {
       + (o.predicted_error?.rms_min_of_errors !== undefined
         ? `, predicted RMS ${(100 * o.predicted_error.rms_min_of_errors).toPrecision(2)} %` : '');
     item.append(el('h3', { textContent: head }));
+    if (o.representations?.length) {
+      item.append(el('p', { className: 'scene-representations', textContent: 'lobes: ' + o.representations
+        .map((r) => `${r.kind} → ${r.representation} (seed ${r.seed})`).join('; ') }));
+    }
     if (o.files.sphere_png && pub.state === 'succeeded') {
       try {
         const data = await api.sceneFile(pub.id, o.files.sphere_png);

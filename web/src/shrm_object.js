@@ -55,6 +55,25 @@ function arrayTexture(data, layout) {
   return latlongHalfTexture(new THREE.DataArrayTexture(data, layout.width, layout.height, numLayers(layout)));
 }
 
+/**
+ * The unit vector from an object's centre toward a distant viewer: the viewer's fixed view, the orthographic
+ * camera's direction, or the direction from the centre to the (perspective) camera.
+ */
+export function objectViewDirection(viewer, center, camera) {
+  const fixed = viewer.fixedView;
+  if (fixed) {
+    return fixed.view.slice();
+  }
+  const d = camera.isOrthographicCamera
+    ? new THREE.Vector3(0, 0, 1).transformDirection(camera.matrixWorld)
+    : new THREE.Vector3().setFromMatrixPosition(camera.matrixWorld).sub(center);
+  if (!(d.lengthSq() > 0)) {
+    return [0, 0, 1];
+  }
+  d.normalize();
+  return [d.x, d.y, d.z];
+}
+
 export class ShrmObject {
   /**
    * @param viewer the ShrmViewer (shared uniforms, shader sources, renderer, options)
@@ -203,18 +222,7 @@ export class ShrmObject {
    * orthographic camera's direction, or the direction from the centre to the (perspective) camera.
    */
   viewDirection(camera) {
-    const fixed = this.viewer.fixedView;
-    if (fixed) {
-      return fixed.view.slice();
-    }
-    const d = camera.isOrthographicCamera
-      ? new THREE.Vector3(0, 0, 1).transformDirection(camera.matrixWorld)
-      : new THREE.Vector3().setFromMatrixPosition(camera.matrixWorld).sub(this.center);
-    if (!(d.lengthSq() > 0)) {
-      return [0, 0, 1];
-    }
-    d.normalize();
-    return [d.x, d.y, d.z];
+    return objectViewDirection(this.viewer, this.center, camera);
   }
 
   /** Per-frame uniforms: placement and, with an SHRM, the layer weights of this object's view. */

@@ -13,6 +13,7 @@
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
+import { makePart, partGeometry } from './scene_parts.js';
 import { build, loadSources } from './shaders.js';
 import {
   fullscreenGeometry, latlongHalfTexture, ShrmObject, sphereProxy, withShaderAttributes,
@@ -22,7 +23,7 @@ import { TONEMAPS } from './tonemap.js';
 export { withShaderAttributes };
 
 const SHADER_FILES = ['fullscreen.vert.glsl', 'object.vert.glsl', 'object.frag.glsl', 'view_map.frag.glsl',
-  'background.frag.glsl', 'prt.vert.glsl', 'sh_table.frag.glsl'];
+  'background.frag.glsl', 'prt.vert.glsl', 'sh_table.frag.glsl', 'gaussian.vert.glsl', 'gaussian.frag.glsl'];
 const HALF_ONE = 0x3c00;
 const ORBIT_MIN_DISTANCE = 2.0; // the unit sphere's proxy box reaches sqrt(3)
 
@@ -157,7 +158,7 @@ export class ShrmViewer {
   /**
    * Show a scene: several objects, each `{name, shape, center: [x, y, z], radius, mode: 'distant' | 'near',
    * geometry: 'sphere' | BufferGeometry (in the unit ball), manifest, buffer}` (its SHRM as ShrmObject.setShrm
-   * takes it).
+   * takes it), or an item of another representation (`kind`: scene_parts.js's makePart).
    * The viewer stands at `eye` (the scene's viewer, the origin) and looks at the nearest object, with a field of
    * view wide enough for all of them. An empty list returns to the single object.
    */
@@ -168,10 +169,15 @@ export class ShrmViewer {
     const made = [];
     try {
       for (const it of items) {
+        if (it.kind && it.kind !== 'shrm') {
+          made.push(makePart(this, it));
+          continue;
+        }
         const obj = new ShrmObject(this, { name: it.name, center: it.center, radius: it.radius,
           mode: it.mode ?? null });
         made.push(obj);
-        obj.setGeometry(it.geometry ?? 'sphere', it.shape ?? it.name);
+        const geometry = it.geometry === 'sphere-mesh' ? partGeometry('sphere') : it.geometry;
+        obj.setGeometry(geometry ?? 'sphere', it.shape ?? it.name);
         obj.setShrm(it.manifest, it.buffer);
       }
     } catch (err) {

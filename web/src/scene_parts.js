@@ -1,0 +1,233 @@
+// A scene object drawn with a representation other than seed 000's SHRM (issue 16 item 4: "the viewer draws the
+// whole scene, each object with its chosen representation"). Each part has what the viewer asks of a scene object
+// (shrm_object.js's ShrmObject): name, center, radius, mode, shape, mesh, prepare(camera, rotation),
+// renderViewMap(), updateMaterial(), dispose().
+//  - GaussianPart: seed 002's Gaussian lobes (web/shaders/gaussian.vert.glsl / gaussian.frag.glsl, the shaders of
+//    the Gaussian panel and of relight.gl.gaussian) with the plan's shared chain; a distant viewer (the direction
+//    from the object's centre to the camera), the environment's rotation turning the normals.
+//  - PrtPart: the diffuse transfer of a Lambertian mesh with shadows (prt_object.js's PrtObject in its transfer
+//    mode: albedo T . L per vertex), placed at the object's centre and radius.
+// An object whose lobes have several representations is several parts: the first opaque, the others added
+// (additive blending on the same geometry, drawn where the first part's depth is).
+import * as THREE from 'three';
+
+import { gaussianDefines } from './gaussian.js';
+import { PrtObject } from './prt_object.js';
+import { build } from './shaders.js';
+import { latlongHalfTexture, objectViewDirection, withShaderAttributes } from './shrm_object.js';
+
+/** The viewer's geometry for a part: a tessellated unit sphere (normals exact at the vertices) or the mesh. */
+export function partGeometry(geometry) {
+  return withShaderAttributes(geometry === 'sphere' || geometry === 'sphere-mesh' || !geometry ? new THREE.SphereGeometry(1, 128, 64)
+    : geometry.clone());
+}
+
+function lobeTexture(bits, lobes, elevations) {
+  const tex = new THREE.DataTexture(bits, lobes, elevations, THREE.RGBAFormat, THREE.HalfFloatType);
+  tex.internalFormat = 'RGBA16F';
+  tex.minFilter = THREE.LinearFilter; // gaussian.glsl: one filtered lookup interpolates the elevations
+  tex.magFilter = THREE.LinearFilter;
+  tex.wrapS = THREE.ClampToEdgeWrapping;
+  tex.wrapT = THREE.ClampToEdgeWrapping;
+  tex.generateMipmaps = false;
+  tex.flipY = false;
+  tex.needsUpdate = true;
+  return tex;
+}
+
+/** Make a part's material the added one of a several-part object (see the module comment). */
+function additive(material) {
+  material.blending = THREE.AdditiveBlending;
+  material.depthFunc = THREE.LessEqualDepth;
+  material.depthWrite = false;
+  return material;
+}
+
+class Part {
+  constructor(viewer, { name, center, radius, shape }) {
+    if (!(radius > 0) || !Number.isFinite(radius) || !center.every(Number.isFinite)) {
+      throw new RangeError(`object ${name}: needs a finite centre and a positive radius`);
+    }
+    this.viewer = viewer;
+    this.name = name;
+    this.center = new THREE.Vector3(...center);
+    this.radius = radius;
+    this.mode = 'distant';
+    this.shape = shape;
+  }
+
+  renderViewMap() {
+    return false;
+  }
+
+  updateMaterial() {}
+}
+
+export class GaussianPart extends Part {
+  /**
+   * @param item {name, center, radius, shape, geometry ('sphere' or a BufferGeometry in the unit ball), material
+   *   (gaussian_panel.js's materialFromLobes), chain (gaussian.js's chainFromLevels), added (bool)}
+   */
+  constructor(viewer, item) {
+    super(viewer, item);
+    this.representation = 'gaussian_lobes';
+    const { material, chain } = item;
+    const n = material.elevations.length;
+    this.textures = [lobeTexture(material.shape, material.lobes, n), lobeTexture(material.weight, material.lobes, n)];
+    const rgba = new Uint16Array(chain.levels.length * chain.height * chain.width * 4);
+    chain.levels.forEach((lv, j) => rgba.set(lv, j * chain.height * chain.width * 4));
+    this.textures.push(latlongHalfTexture(new THREE.DataArrayTexture(rgba, chain.width, chain.height,
+      chain.levels.length)));
+    const shared = viewer.uniforms;
+    this.uniforms = {
+      u_view_projection: shared.u_view_projection,
+      u_exposure: shared.u_exposure,
+      u_tonemap: shared.u_tonemap,
+      u_model: { value: new THREE.Matrix4() },
+      u_normal_env: { value: new THREE.Matrix3() },
+      u_view_direction: { value: new THREE.Vector3(0, 0, 1) },
+      u_lobe_shape: { value: this.textures[0] },
+      u_lobe_weight: { value: this.textures[1] },
+      u_chain: { value: this.textures[2] },
+      u_elevations: { value: Array.from(material.elevations) },
+      u_chain_sigma0: { value: chain.sigma0 },
+      u_chain_log_ratio: { value: chain.levels.length > 1 ? Math.log(chain.ratio) : 1.0 },
+    };
+    this.defines = { ...gaussianDefines({ lobes: material.lobes, elevations: n, levels: chain.levels.length,
+      linear: false }), GAUSSIAN_MODEL: null };
+    this.added = !!item.added;
+    this._materials = new Map();
+    this.mesh = new THREE.Mesh(partGeometry(item.geometry), this.material('display'));
+    this.mesh.name = item.name;
+    this.mesh.frustumCulled = false;
+    this.mesh.renderOrder = this.added ? 1 : 0;
+  }
+
+  /** 'display' (tonemapped, the canvas) or 'linear' (radiance, float targets). */
+  material(output) {
+    if (!this._materials.has(output)) {
+      const defs = output === 'linear' ? { ...this.defines, OUTPUT_LINEAR: null } : this.defines;
+      const body = (name) => build(name, { defines: defs, read: this.viewer.read }).replace(/^#version 300 es\n/, '');
+      const m = new THREE.RawShaderMaterial({ vertexShader: body('gaussian.vert.glsl'),
+        fragmentShader: body('gaussian.frag.glsl'), uniforms: this.uniforms, glslVersion: THREE.GLSL3 });
+      this._materials.set(output, this.added ? additive(m) : m);
+    }
+    return this._materials.get(output);
+  }
+
+  /** Per frame: placement, the normals' turn into the environment's frame, the view from the centre. */
+  prepare(camera, rotation) {
+    this.uniforms.u_model.value.makeScale(this.radius, this.radius, this.radius).setPosition(this.center);
+    const c = Math.cos(rotation);
+    const s = Math.sin(rotation);
+    this.uniforms.u_normal_env.value.set(c, 0, s, 0, 1, 0, -s, 0, c); // sh.js rotateY(d, rotation)
+    const v = objectViewDirection(this.viewer, this.center, camera);
+    this.uniforms.u_view_direction.value.set(c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]);
+  }
+
+  dispose() {
+    this._materials.forEach((m) => m.dispose());
+    this.textures.forEach((t) => t.dispose());
+    this.mesh.geometry.dispose();
+    this.mesh.removeFromParent();
+  }
+}
+
+export class PrtPart extends Part {
+  /**
+   * @param item {name, center, radius, shape, prt (the object's {name}.prt.json), geometryBuffer, transferBuffer,
+   *   albedo, added}
+   */
+  constructor(viewer, item) {
+    super(viewer, item);
+    this.representation = 'diffuse_transfer';
+    this.prt = new PrtObject(viewer);
+    this.prt.albedo = item.albedo ?? this.prt.albedo;
+    this.prt.setPlacement(item.center, item.radius);
+    this.prt.setMesh({ geometry: item.prt.geometry, bounds: item.prt.bounds,
+      bounding_radius: item.prt.bounding_radius }, item.geometryBuffer);
+    this.prt.setVisibility(item.prt, { 'transfer.bin': item.transferBuffer });
+    this.prt.setMode('transfer');
+    this.added = !!item.added;
+    this.mesh = this.prt.mesh;
+    this.mesh.name = item.name;
+    this.mesh.visible = true;
+    this.mesh.renderOrder = this.added ? 1 : 0;
+    this.updateMaterial();
+  }
+
+  /** 'transfer' (shadowed, as planned) or 'unshadowed' (the same lighting without visibility: for comparisons). */
+  setMode(mode) {
+    this.prt.setMode(mode);
+    this.updateMaterial();
+  }
+
+  material(output) {
+    const m = this.prt.material(this.prt.mode, output);
+    return this.added ? additive(m) : m;
+  }
+
+  updateMaterial() {
+    if (!this.prt.lighting) {
+      this.prt.updateLighting();
+    }
+    this.mesh.material = this.material('display');
+  }
+
+  prepare(camera, rotation) {
+    this.prt.setPlacement(this.center.toArray(), this.radius);
+    this.prt.prepare(-rotation); // the viewer passes -options.rotation; PrtObject takes the environment's turn
+  }
+
+  dispose() {
+    this.prt.dispose();
+    this.mesh.removeFromParent();
+  }
+}
+
+/** The part of one scene item (sceneItems in scene.js): by its representation. */
+export function makePart(viewer, item) {
+  if (item.kind === 'gaussian_lobes') {
+    return new GaussianPart(viewer, item);
+  }
+  if (item.kind === 'diffuse_transfer') {
+    return new PrtPart(viewer, item);
+  }
+  throw new Error(`scene object ${item.name}: no part for representation ${item.kind}`);
+}
+
+/**
+ * Linear radiance of one scene part alone, moved to the origin with radius 1 and seen orthographically from
+ * `view` (relight.mesh_render's and relight.sg_render's camera: the unit ball looked at from 3 V), the environment
+ * turned by the viewer's rotation: {rgb: Float32Array RGB, coverage: Uint8Array}, size x size, row 0 at the top.
+ * For tests (the CPU twins render the same part).
+ */
+export function renderPartLinear(viewer, part, view, size) {
+  const saved = { center: part.center.clone(), radius: part.radius, material: part.mesh.material,
+    visible: viewer.sceneObjects.map((o) => o.mesh.visible), fixed: viewer.fixedView,
+    target: viewer.sceneTarget.clone(), bg: viewer.background.visible };
+  const target = new THREE.WebGLRenderTarget(size, size, { type: THREE.FloatType, format: THREE.RGBAFormat,
+    minFilter: THREE.NearestFilter, magFilter: THREE.NearestFilter, depthBuffer: true, generateMipmaps: false });
+  try {
+    viewer.sceneObjects.forEach((o) => { o.mesh.visible = o === part; });
+    part.center.set(0, 0, 0);
+    part.radius = 1;
+    viewer.sceneTarget.set(0, 0, 0);
+    viewer.setFixedView({ view, orthographic: true });
+    const cam = viewer._activeCamera();
+    viewer._prepare(cam, size, size);
+    part.mesh.material = part.material('linear');
+    viewer.background.visible = false;
+    return viewer._drawLinear(target, cam, size);
+  } finally {
+    viewer.renderer.setRenderTarget(null);
+    target.dispose();
+    part.center.copy(saved.center);
+    part.radius = saved.radius;
+    part.mesh.material = saved.material;
+    viewer.sceneObjects.forEach((o, k) => { o.mesh.visible = saved.visible[k]; });
+    viewer.setFixedView(saved.fixed);
+    viewer.sceneTarget.copy(saved.target);
+    viewer.background.visible = saved.bg;
+  }
+}
