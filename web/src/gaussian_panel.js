@@ -291,8 +291,10 @@ export function initGaussianPanel(state, $, showError) {
     const body = { envmap: state.envmapId, ratio: 'sqrt2', epsilon: 1e-3, uniform_size: true };
     const job = await waitJob(await request('POST', '/jobs', { json: { kind: 'gaussian_chain', request: body } }));
     const result = await request('GET', `/jobs/${job.id}/result`);
-    const buffers = await Promise.all(result.levels.map((lv) => request('GET', `/jobs/${job.id}/files/${lv.file}`,
-      { as: 'arrayBuffer' })));
+    const buffers = [];
+    for (const lv of result.levels) {
+      buffers.push(await request('GET', `/jobs/${job.id}/files/${lv.file}`, { as: 'arrayBuffer' }));
+    }
     const chainData = chainFromLevels(result, buffers);
     sg.view = sg.view || new GaussianView();
     sg.view.setChain(chainData);
