@@ -120,8 +120,9 @@ class AsyncRelightClient:
         return await self._do(Calls.get_brdf(brdf_id))
 
     async def plan(self, envmap: str, brdf: Spec, *, epsilon: float | None = None, order: int | None = None,
-                   p_order: int | None = None, size: int | None = None) -> PlanPublic:
-        return await self._do(Calls.plan(job_body(envmap, brdf, epsilon, order, p_order, size)))
+                   p_order: int | None = None, size: int | None = None,
+                   sun: str | None = None) -> PlanPublic:
+        return await self._do(Calls.plan(job_body(envmap, brdf, epsilon, order, p_order, size, sun)))
 
     async def submit(self, envmap: str, brdf: Spec, *, epsilon: float | None = None, order: int | None = None,
                      p_order: int | None = None, size: int | None = None, sun: str | None = None) -> JobPublic:

@@ -5,6 +5,9 @@
     relight submit ENVMAP --brdf SPEC [--epsilon E | --order F] [--size S] [--sun extract|clamp=V|keep] [--wait]
                    [--out SHRM.exr]
     relight jobs [--state S]
+    relight plan ENVMAP --brdf SPEC [--epsilon E | --order F] [--p-order P] [--size S] [--sun extract|clamp=V|keep]
+        what POST /shrms would do: representation, orders, predicted error and seconds; with --sun extract and a
+        tolerance each lobe's order with and without the sun and the factor
 
 ``--server`` defaults to ``$RELIGHT_SERVER`` or http://127.0.0.1:8000; ``--api-key`` to ``$RELIGHT_API_KEY``.
 The SDK (httpx, pydantic) loads when a command runs; a :class:`relight.client.errors.RelightError` is printed on one
@@ -61,8 +64,7 @@ def cmd_submit(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     with _client(args) as c:
-        envmap = args.envmap if _DIGEST.match(args.envmap) and not Path(args.envmap).exists() else \
-            c.upload_envmap(args.envmap).id
+        envmap = _envmap_id(c, args.envmap)
         job = c.submit(envmap, _brdf_arg(args.brdf), epsilon=args.epsilon, order=args.order, p_order=args.p_order,
                        size=args.size, sun=None if args.sun == "keep" else args.sun)
         if not (args.wait or args.out):
@@ -91,6 +93,36 @@ def cmd_submit(args: argparse.Namespace) -> int:
             took = f"{m.seconds:.3f} s" if m and m.seconds is not None else "cached"
             rms = f", predicted relative RMS {m.rms_error:.3g}" if m and m.rms_error is not None else ""
             print(f"{job.id}  {job.state} ({took}{rms})" + (f"  -> {args.out}" if args.out else ""))
+    return 0
+
+
+def _envmap_id(c: Any, text: str) -> str:
+    return text if _DIGEST.match(text) and not Path(text).exists() else str(c.upload_envmap(text).id)
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    with _client(args) as c:
+        plan = c.plan(_envmap_id(c, args.envmap), _brdf_arg(args.brdf), epsilon=args.epsilon, order=args.order,
+                      p_order=args.p_order, size=args.size, sun=None if args.sun == "keep" else args.sun)
+    if args.json:
+        print(plan.model_dump_json(indent=2))
+        return 0
+    o, e = plan.orders, plan.predicted_error
+    rms = e.rms_appendix_b if e.rms_appendix_b is not None else e.rms_min_of_errors
+    print(f"{plan.job_id}  {plan.representation}  F_B = {o.F_B}  P_B = {o.P_B}  "
+          f"{plan.output.height}x{plan.output.width}x{plan.output.layers}  predicted {plan.predicted_seconds:.3g} s"
+          + (f", relative RMS <= {rms:.3g}" if rms is not None else "") + ("  (cached)" if plan.cached else ""))
+    if plan.sun is not None:
+        sun = plan.sun.extracted
+        print(f"sun: direction {', '.join(f'{x:.4f}' for x in sun['direction'])}, illuminance "
+              f"{sun['illuminance']:.4g}, {100 * sun['energy_fraction']:.1f} % of the map's energy")
+        for lobe in plan.sun.lobes:
+            def order(f: int, met: bool) -> str:
+                return str(f) if met else f"{f} (epsilon not met below F_B)"
+
+            print(f"  {lobe.kind} ({lobe.center}-centred): order {order(lobe.order_with_sun, lobe.met_with_sun)} "
+                  f"with the sun, {order(lobe.order_without_sun, lobe.met_without_sun)} without: "
+                  f"{lobe.factor:.2f}x lower at epsilon = {plan.sun.epsilon:g}")
     return 0
 
 
@@ -130,7 +162,7 @@ def _guard(fn: Any) -> Any:
 
 
 def register(sub: Any) -> None:
-    """Add ``upload``, ``submit`` and ``jobs`` to the ``relight`` command's subparsers."""
+    """Add ``upload``, ``submit``, ``plan`` and ``jobs`` to the ``relight`` command's subparsers."""
     p = sub.add_parser("upload", help="upload an environment map to the service")
     p.add_argument("envmap")
     p.add_argument("--name")
@@ -152,6 +184,19 @@ def register(sub: Any) -> None:
     p.add_argument("--out", help="download the result here (.exr: coefficients.exr, .bin: float16 texture)")
     _add_common(p)
     p.set_defaults(func=_guard(cmd_submit))
+
+    p = sub.add_parser("plan", help="plan a prefiltering job on the service without computing it")
+    p.add_argument("envmap", help="a file (uploaded first) or an environment-map id")
+    p.add_argument("--brdf", required=True, help="phong:s=32, a JSON spec file, or a BRDF id")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--epsilon", type=float)
+    g.add_argument("--order", type=int)
+    p.add_argument("--p-order", type=int, help="view order P for SHRMs (with --order)")
+    p.add_argument("--size", type=int)
+    p.add_argument("--sun", default="keep", help="extract (with --epsilon: each lobe's order with and without the "
+                   "sun), clamp=V or keep (default)")
+    _add_common(p)
+    p.set_defaults(func=_guard(cmd_plan))
 
     p = sub.add_parser("jobs", help="list jobs on the service")
     p.add_argument("--state", choices=["queued", "running", "succeeded", "failed", "cancelled"])

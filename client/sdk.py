@@ -116,8 +116,11 @@ class RelightClient:
         return self._do(Calls.get_brdf(brdf_id))
 
     def plan(self, envmap: str, brdf: Spec, *, epsilon: float | None = None, order: int | None = None,
-             p_order: int | None = None, size: int | None = None) -> PlanPublic:
-        return self._do(Calls.plan(job_body(envmap, brdf, epsilon, order, p_order, size)))
+             p_order: int | None = None, size: int | None = None,
+             sun: str | None = None) -> PlanPublic:
+        """``POST /plan``; ``sun="extract"`` with a tolerance adds the order each lobe needs with and without the
+        sun (``plan.sun``)."""
+        return self._do(Calls.plan(job_body(envmap, brdf, epsilon, order, p_order, size, sun)))
 
     def submit(self, envmap: str, brdf: Spec, *, epsilon: float | None = None, order: int | None = None,
                p_order: int | None = None, size: int | None = None, sun: str | None = None) -> JobPublic:

@@ -32,15 +32,16 @@ class JobCreate(Strict):
         return self
 
 
-class PlanCreate(JobCreate):
-    pass
-
-
 class ShrmCreate(JobCreate):
     sun: str = Field("keep", max_length=40, pattern=SUN_PATTERN,
                      description="extract: prefilter the map without its sun (the result's input.sun holds it as a "
                                  "directional light), clamp=V: pixel luminance <= V (removed energy recorded), keep; "
                                  "relight.sun. The plan is of the map as uploaded")
+
+
+class PlanCreate(ShrmCreate):
+    """``POST /plan``: the body ``POST /shrms`` takes; with ``sun=extract`` and a tolerance the plan's ``sun`` shows
+    the order each lobe needs with and without the sun."""
 
 
 class OutputShape(Public):
@@ -49,6 +50,27 @@ class OutputShape(Public):
     layers: int
     exr_bytes_estimate: int
     bin_bytes: int
+
+
+class SunLobeOrders(Public):
+    """One lobe's order with and without the sun (``relight.planning.sun_orders``)."""
+
+    kind: str
+    center: str
+    F_B: int = Field(description="the lobe's planned order")
+    P_B: int = Field(description="the lobe's planned view order")
+    order_with_sun: int = Field(description="smallest F <= F_B whose predicted error per view band meets epsilon "
+                                "under the map as uploaded (F_B when none does)")
+    met_with_sun: bool
+    order_without_sun: int = Field(description="the same under the map without its sun (the residual)")
+    met_without_sun: bool
+    factor: float = Field(description="order_with_sun / order_without_sun: the order reduction the extraction buys")
+
+
+class SunPlan(Public):
+    extracted: dict[str, Any] = Field(description="the sun relight.sun.extract_sun finds (as the job's input.sun)")
+    epsilon: float
+    lobes: list[SunLobeOrders]
 
 
 class PlanPublic(Public):
@@ -62,6 +84,8 @@ class PlanPublic(Public):
     output: OutputShape
     cost_model: dict[str, Any] | None = Field(None, description="the cost model behind predicted_seconds: calibrated "
                                               "on this machine (relight.costmodel) or the built-in defaults")
+    sun: SunPlan | None = Field(None, description="sun=extract with a tolerance: per lobe the order with and without "
+                                "the sun")
 
 
 class JobSubmit(Strict):

@@ -46,6 +46,8 @@ from relight.contract.jobs import (
     Prediction,
     ShrmCreate,
     ShrmManifest,
+    SunLobeOrders,
+    SunPlan,
 )
 from relight.contract.reports import (
     CoreReport,
@@ -121,6 +123,8 @@ __all__ = [
     "ShrmCreate",
     "ShrmManifest",
     "SUN_PATTERN",
+    "SunLobeOrders",
+    "SunPlan",
     "Strict",
     "TradeoffCreate",
     "TradeoffPublic",

@@ -9,7 +9,16 @@ from typing import Any
 from sqlalchemy import select
 
 import relight
-from relight.contract.models import BrdfPublic, EnvmapPublic, JobCreate, Orders, OutputShape, PlanPublic, PredictedError
+from relight.contract.models import (
+    BrdfPublic,
+    EnvmapPublic,
+    JobCreate,
+    Orders,
+    OutputShape,
+    PlanPublic,
+    PredictedError,
+    SunPlan,
+)
 from relight.errors import InputError
 from relight.server.config import Settings
 from relight.server.db import Database, Job
@@ -85,14 +94,24 @@ class PlanService:
         params = self.canonical_params(create)
         return Prepared(env, brdf, params, job_id_for(env.id, brdf.id, params))
 
-    async def plan_prepared(self, prep: Prepared) -> PlanPublic:
+    async def plan_prepared(self, prep: Prepared, *, sun_orders: bool = False) -> PlanPublic:
+        """The plan; ``sun_orders`` (``POST /plan``): with ``sun=extract`` and a tolerance also the order each lobe
+        needs with and without the sun (``relight.planning.sun_orders``: the stored map decoded and its sun
+        extracted, about a second at 1024 x 512)."""
         from relight.planning import JobPlan, plan_job
+        from relight.planning.sun_orders import plan_job_with_sun
 
+        info = prep.envmap.model_dump(mode="json")
         try:
             spec = await in_thread(to_core, prep.brdf.spec, self.store)
-            raw: JobPlan = await self.pool.run(busy_then, self.settings.plan_test_busy_s, plan_job,
-                                               prep.envmap.model_dump(mode="json"), spec, prep.params,
-                                               timeout=self.settings.plan_timeout_s)
+            if sun_orders and prep.params.get("sun") == "extract" and prep.params.get("epsilon") is not None:
+                path = str(self.store.path(self.store.stored_envmap(prep.envmap.id)))
+                raw: JobPlan = await self.pool.run(busy_then, self.settings.plan_test_busy_s, plan_job_with_sun,
+                                                   info, spec, prep.params, path,
+                                                   timeout=self.settings.plan_timeout_s)
+            else:
+                raw = await self.pool.run(busy_then, self.settings.plan_test_busy_s, plan_job, info, spec,
+                                          prep.params, timeout=self.settings.plan_timeout_s)
         except (InputError, ValueError) as exc:
             raise Unprocessable(str(exc)) from None
         except (BlobMissing, BlobCorrupt) as exc:
@@ -132,7 +151,8 @@ class PlanService:
             job_id=prep.job_id, cached=await in_thread(finished), representation=raw.representation,
             reason=raw.reason, orders=Orders(**d["orders"]), predicted_error=PredictedError(**d["predicted_error"]),
             predicted_seconds=raw.predicted_seconds, output=OutputShape(**d["output"]), cost_model=d["cost_model"],
+            sun=SunPlan(**d["sun"]) if d.get("sun") else None,
         )
 
     async def plan(self, create: JobCreate) -> PlanPublic:
-        return await self.plan_prepared(await self.prepare(create))
+        return await self.plan_prepared(await self.prepare(create), sun_orders=True)

@@ -34,6 +34,9 @@ SERVICE_OPTIONS = {
     "submit": {"--brdf", "--epsilon", "--order", "--p-order", "--size", "--wait", "--wait-timeout", "--out",
                "--server", "--api-key", "--timeout", "--json", "--sun"},
     "jobs": {"--state", "--limit", "--server", "--api-key", "--timeout", "--json"},
+    # issue 17, item 6: the plan with --sun extract shows each lobe's order with and without the sun
+    "plan": {"--brdf", "--epsilon", "--order", "--p-order", "--size", "--sun", "--server", "--api-key", "--timeout",
+             "--json"},
 }
 
 
