@@ -3,9 +3,10 @@
     .venv/bin/python bench/gaussian_frame.py [--size 512] [--frames 20] [--json OUT.json]
 
 One run, one GL context: the unit sphere and the ~100K-vertex bunny (``bunny-100k``) drawn with the chain's sharpest
-level looked up at R (``plain``: one texture lookup per pixel, the baseline), K = 3 Gaussian lobes (eq. 5), and
-K = 3 with 16-coefficient SH visibility at the lobe centres (eq. 7, ``sh``) or convolved with the lobes
-(``sh-lobe``), all through ``web/shaders/gaussian*.glsl`` (``relight.gl.gaussian``). Milliseconds per frame (the
+level looked up at R (``plain``: one bilinear lookup per pixel in an RGBA16F 2-D texture, the baseline), K = 3
+Gaussian lobes (eq. 5: per lobe one lookup in the packed lobe texture and one trilinear lookup in the chain's 3-D
+texture, plus one lookup for the blue weights), and K = 3 with 16-coefficient SH visibility at the lobe centres
+(eq. 7, ``sh``) or convolved with the lobes (``sh-lobe``), all through ``web/shaders/gaussian*.glsl`` (``relight.gl.gaussian``). Milliseconds per frame (the
 median of ``--repeats`` timed batches of ``--frames`` frames each, after a warm-up; the shaders take turns batch by
 batch, so a change of the shared machine's load hits them alike; the load average is in the JSON) and the ratio to
 ``plain`` of the same object (the issue's target: <= 3x for K = 3 + SH16). SwiftShader/llvmpipe absolute times

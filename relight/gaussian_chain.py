@@ -137,7 +137,8 @@ def build_chain(
     uniform_size: bool = False,
 ) -> GaussianChain:
     """The Gaussian chain of a lat-long map (H, W, 3) (module docstring): one projection, one synthesis per level;
-    ``uniform_size`` synthesises every level at the largest size (a GPU texture array, ``relight.gl.gaussian``)."""
+    ``uniform_size`` synthesises every level at the largest size (the slices of a GPU 3-D texture,
+    ``relight.gl.gaussian``)."""
     validate.in_range("chain: epsilon", epsilon, 0.0, 1.0, lo_open=True, hi_open=True)
     px = require_rgb_latlong(pixels)
     h, w = px.shape[:2]

@@ -6,13 +6,15 @@ viewer uses; it evaluates eq. 5, or eq. 7 with per-vertex SH visibility, exactly
 :func:`half_chain` round a material and a chain the way the textures hold them, so the CPU evaluation of the
 rounded data is the GPU's reference (``tests/relight/test_gl_gaussian.py``).
 
-Textures (the paper's Fig. 3): ``u_lobe_shape`` K x N RGBA16F (mu, sigma), ``u_lobe_weight`` K x N RGBA16F (w),
-both LINEAR and clamped (one filtered lookup per lobe interpolates the elevations),
-``u_chain`` an RGBA16F 2-D array of the chain's levels, which must share one size (``build_chain(...,
-uniform_size=True)``). Objects: the unit sphere (orthographic, ``relight.shrm.sphere_geometry``'s frame) or a
+Textures (the paper's Fig. 3): ``u_lobes`` RGBA16F, N rows of ``lobe_texels(K)`` texels (:func:`pack_lobes`:
+(mu_k, sigma_k, w_k.r, w_k.g) per lobe, then the blue weights four to a texel), LINEAR and clamped (one filtered
+lookup per texel interpolates the elevations); ``u_chain`` an RGBA16F 3-D texture whose slices are the chain's
+levels, which must share one size (``build_chain(..., uniform_size=True)``): one trilinear lookup per lobe blends
+two levels. Objects: the unit sphere (orthographic, ``relight.shrm.sphere_geometry``'s frame) or a
 ``TriangleMesh`` in the unit ball (indexed, canonical vertex order, with its per-vertex visibility), with
 ``relight.mesh_render``'s orthographic camera. ``plain=True`` draws the baseline instead: the chain's sharpest
-level looked up at R, one texture lookup per pixel (the per-frame cost reference of ``bench/gaussian_frame.py``).
+level as an ordinary RGBA16F 2-D texture (``u_env``) looked up at R, one bilinear lookup per pixel (the per-frame
+cost reference of ``bench/gaussian_frame.py``).
 """
 
 from __future__ import annotations
@@ -59,6 +61,24 @@ def half_chain(chain: GaussianChain) -> GaussianChain:
     return GaussianChain(sigma0=levels[0].sigma, ratio=chain.ratio, levels=levels, report=chain.report)
 
 
+def lobe_texels(n_lobes: int) -> int:
+    """RGBA texels per elevation of the lobe texture: one per lobe, then the blue weights four to a texel."""
+    return n_lobes + (n_lobes + 3) // 4
+
+
+def pack_lobes(material: GaussianLobes) -> NDArray[np.float16]:
+    """The lobe texture's texels, (N, K + ceil(K / 4), 4) float16: per elevation (mu_k, sigma_k, w_k.r, w_k.g) for
+    k < K, then w_0.b, ..., w_{K-1}.b zero-padded (``web/src/gaussian.js``'s packLobes)."""
+    k, n = material.n_lobes, material.elevations.size
+    out = np.zeros((n, lobe_texels(k), 4), dtype=np.float16)
+    w = np.asarray(material.weight)
+    out[:, :k, 0], out[:, :k, 1], out[:, :k, 2:] = material.mu, material.sigma, w[..., :2]
+    blue = np.zeros((n, 4 * (lobe_texels(k) - k)))
+    blue[:, :k] = w[..., 2]
+    out[:, k:] = blue.reshape(n, -1, 4)
+    return out
+
+
 class GaussianRenderer:
     """One material and one chain on one GL context; :meth:`render` draws the sphere or a mesh from any view."""
 
@@ -71,31 +91,32 @@ class GaussianRenderer:
                              f"{sorted(sizes)}")
         self.material, self.chain = material, chain
         self.ctx = ctx if ctx is not None else create_context()
-        k, n = material.n_lobes, material.elevations.size
-        shape = np.zeros((n, k, 4), dtype=np.float16)
-        shape[..., 0], shape[..., 1] = material.mu, material.sigma
-        weight = np.zeros((n, k, 4), dtype=np.float16)
-        weight[..., :3] = material.weight
-        self.lobe_shape = self.ctx.texture((k, n), 4, np.ascontiguousarray(shape).tobytes(), dtype="f2")
-        self.lobe_weight = self.ctx.texture((k, n), 4, np.ascontiguousarray(weight).tobytes(), dtype="f2")
-        for tex in (self.lobe_shape, self.lobe_weight):  # the shader interpolates elevations by the sampler
-            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-            tex.repeat_x = tex.repeat_y = False
+        texels = pack_lobes(material)
+        self.lobes = self.ctx.texture((texels.shape[1], texels.shape[0]), 4, np.ascontiguousarray(texels).tobytes(),
+                                      dtype="f2")
+        self.lobes.filter = (moderngl.LINEAR, moderngl.LINEAR)  # the shader interpolates elevations by the sampler
+        self.lobes.repeat_x = self.lobes.repeat_y = False
         h, w = next(iter(sizes))[:2]
+        from relight.envmap.exr import to_half_safe
+
         levels = np.zeros((len(chain.levels), h, w, 4), dtype=np.float16)
         for j, lv in enumerate(chain.levels):
-            from relight.envmap.exr import to_half_safe
-
             levels[j, ..., :3] = to_half_safe(np.asarray(lv.map))[0]
-        self.chain_tex = self.ctx.texture_array((w, h, len(chain.levels)), 4, levels.tobytes(), dtype="f2")
+        # the levels as the slices of one 3-D texture: one trilinear lookup blends two levels (gaussian.glsl)
+        self.chain_tex = self.ctx.texture3d((w, h, len(chain.levels)), 4, levels.tobytes(), dtype="f2")
         self.chain_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.chain_tex.repeat_x = True
-        self.chain_tex.repeat_y = False
+        self.chain_tex.repeat_y = self.chain_tex.repeat_z = False
+        # the plain baseline's environment: the sharpest level as an ordinary 2-D texture (one bilinear lookup)
+        self.env_tex = self.ctx.texture((w, h), 4, np.ascontiguousarray(levels[0]).tobytes(), dtype="f2")
+        self.env_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.env_tex.repeat_x = True
+        self.env_tex.repeat_y = False
         self._programs: dict[tuple[str, str, int, bool], Any] = {}
         self._quad = self.ctx.buffer(_FULLSCREEN.tobytes())
 
     def release(self) -> None:
-        for obj in (self.lobe_shape, self.lobe_weight, self.chain_tex, self._quad):
+        for obj in (self.lobes, self.chain_tex, self.env_tex, self._quad):
             obj.release()
 
     def defines(self, obj: str, mode: str = "none", order: int = 3, plain: bool = False) -> dict[str, object]:
@@ -153,7 +174,7 @@ class GaussianRenderer:
         prog = self._program(obj, mode, order, plain)
         right, up = camera_basis(v)
         values: dict[str, Any] = {
-            "u_lobe_shape": 0, "u_lobe_weight": 1, "u_chain": 2,
+            "u_lobes": 0, "u_chain": 1, "u_env": 2,
             "u_elevations": [float(x) for x in self.material.elevations],
             "u_chain_sigma0": float(self.chain.levels[0].sigma),
             "u_chain_log_ratio": math.log(self.chain.levels[1].sigma / self.chain.levels[0].sigma)
@@ -170,9 +191,9 @@ class GaussianRenderer:
             vbo, ibo = mesh
             # visibility attributes not compiled in, or optimised away (AO reads only the DC term), are padding
             vao = vertex_array(self.ctx, prog, vbo, _MESH_LAYOUT, ibo)
-        self.lobe_shape.use(location=0)
-        self.lobe_weight.use(location=1)
-        self.chain_tex.use(location=2)
+        self.lobes.use(location=0)
+        self.chain_tex.use(location=1)
+        self.env_tex.use(location=2)
         try:
             with float_target(self.ctx, size, size, depth=True) as fbo:
                 for _ in range(max(1, frames)):

@@ -26,6 +26,10 @@ in vec4 v_visibility3;
 #endif
 #endif
 
+#ifdef GAUSSIAN_PLAIN
+uniform highp sampler2D u_env;  // the chain's sharpest level as a 2-D texture
+#endif
+
 layout(location = 0) out vec4 o_color;
 
 void main() {
@@ -41,13 +45,9 @@ void main() {
     vec3 n = normalize(v_normal);
 #endif
 #if defined(GAUSSIAN_PLAIN)
-    vec3 color = texture(u_chain, vec3(latlong_uv(reflect_view(n, v)), 0.0)).rgb;
+    vec3 color = texture(u_env, latlong_uv(reflect_view(n, v))).rgb;
 #elif defined(GAUSSIAN_VISIBILITY)
-    float vis[16] = float[16](v_visibility0.x, v_visibility0.y, v_visibility0.z, v_visibility0.w,
-                              v_visibility1.x, v_visibility1.y, v_visibility1.z, v_visibility1.w,
-                              v_visibility2.x, v_visibility2.y, v_visibility2.z, v_visibility2.w,
-                              v_visibility3.x, v_visibility3.y, v_visibility3.z, v_visibility3.w);
-    vec3 color = gaussian_shade(n, v, vis);
+    vec3 color = gaussian_shade(n, v, mat4(v_visibility0, v_visibility1, v_visibility2, v_visibility3));
 #else
     vec3 color = gaussian_shade(n, v);
 #endif

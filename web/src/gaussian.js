@@ -1,9 +1,11 @@
 // Seed 002's Gaussian-lobe shading in WebGL2: the viewer's side of relight/gl/gaussian.py, with the same GLSL
 // (web/shaders/gaussian.glsl through gaussian.vert.glsl / gaussian.frag.glsl, assembled by shaders.js).
 //
-// Data are float16 bit patterns (Uint16Array), as stored: the lobe textures (K x N texels, RGBA: mu, sigma, 0, 0
-// and w_r, w_g, w_b, 0; row = elevation) and the chain's levels (one S x 2S RGBA lat-long map each, one size),
-// uploaded as RGBA16F (LINEAR, REPEAT in u, CLAMP_TO_EDGE in v, as relight.conventions.sample_latlong).
+// Data are float16 bit patterns (Uint16Array), as stored: the material's lobes (per elevation and lobe: mu, sigma,
+// 0, 0 and w_r, w_g, w_b, 0), packed for the shader by packLobes into one RGBA16F texture (row = elevation:
+// (mu_k, sigma_k, w_r, w_g) per lobe, then the blue weights four to a texel; relight.gl.gaussian.pack_lobes), and
+// the chain's levels (one S x 2S RGBA lat-long map each, one size) as the slices of one RGBA16F 3-D texture
+// (LINEAR, REPEAT in u, CLAMP_TO_EDGE in v and across the levels, as relight.conventions.sample_latlong).
 
 import { build, loadSources } from './shaders.js';
 
@@ -43,8 +45,8 @@ export async function gaussianProgram(gl, defines, base = 'shaders/') {
 }
 
 /**
- * Sampling of the bound K x N lobe texture: LINEAR, CLAMP_TO_EDGE (gaussian.glsl interpolates the elevations with
- * one filtered lookup per lobe).
+ * Sampling of the bound lobe texture: LINEAR, CLAMP_TO_EDGE (gaussian.glsl interpolates the elevations with one
+ * filtered lookup per texel).
  */
 export function lobeSampling(gl) {
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
@@ -53,11 +55,56 @@ export function lobeSampling(gl) {
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
 }
 
-function texture2d(gl, width, height, bits) {
+/** Texels per elevation of the packed lobe texture: one per lobe, then the blue weights four to a texel. */
+export function lobeTexels(lobes) {
+  return lobes + Math.floor((lobes + 3) / 4);
+}
+
+/**
+ * The shader's lobe texture (float16 bits, N rows of lobeTexels(K) RGBA texels) from the material's `shape` and
+ * `weight` (N * K * 4 each): texel k = (mu_k, sigma_k, w_k.r, w_k.g), then w_0.b, ..., w_{K-1}.b, zero-padded.
+ */
+export function packLobes(material) {
+  const k = material.lobes;
+  const n = material.elevations.length;
+  const texels = lobeTexels(k);
+  const out = new Uint16Array(n * texels * 4);
+  for (let i = 0; i < n; i += 1) {
+    for (let l = 0; l < k; l += 1) {
+      const src = 4 * (i * k + l);
+      const dst = 4 * (i * texels + l);
+      out[dst] = material.shape[src];
+      out[dst + 1] = material.shape[src + 1];
+      out[dst + 2] = material.weight[src];
+      out[dst + 3] = material.weight[src + 1];
+      out[4 * (i * texels + k) + l] = material.weight[src + 2];
+    }
+  }
+  return out;
+}
+
+/** Upload the packed lobes of `material` into the bound 2-D texture. */
+export function uploadLobes(gl, material) {
+  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA16F, lobeTexels(material.lobes), material.elevations.length, 0, gl.RGBA,
+    gl.HALF_FLOAT, packLobes(material));
+}
+
+/**
+ * The chain's levels (`chain` = {height, width, levels: [Uint16Array of H * W * 4]}) as the slices of one RGBA16F
+ * 3-D texture: one trilinear lookup blends two levels (gaussian.glsl).
+ */
+export function uploadChain(gl, chain) {
   const tex = gl.createTexture();
-  gl.bindTexture(gl.TEXTURE_2D, tex);
-  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA16F, width, height, 0, gl.RGBA, gl.HALF_FLOAT, bits);
-  lobeSampling(gl);
+  gl.bindTexture(gl.TEXTURE_3D, tex);
+  gl.texStorage3D(gl.TEXTURE_3D, 1, gl.RGBA16F, chain.width, chain.height, chain.levels.length);
+  chain.levels.forEach((bits, j) => {
+    gl.texSubImage3D(gl.TEXTURE_3D, 0, 0, 0, j, chain.width, chain.height, 1, gl.RGBA, gl.HALF_FLOAT, bits);
+  });
+  gl.texParameteri(gl.TEXTURE_3D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_3D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_3D, gl.TEXTURE_WRAP_S, gl.REPEAT);
+  gl.texParameteri(gl.TEXTURE_3D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+  gl.texParameteri(gl.TEXTURE_3D, gl.TEXTURE_WRAP_R, gl.CLAMP_TO_EDGE);
   return tex;
 }
 
@@ -66,20 +113,11 @@ function texture2d(gl, width, height, bits) {
  * (Uint16Array of N * K * 4 each); `chain` = {sigma0, ratio, height, width, levels: [Uint16Array of H * W * 4]}.
  */
 export function uploadGaussian(gl, material, chain) {
-  const n = material.elevations.length;
-  const shape = texture2d(gl, material.lobes, n, material.shape);
-  const weight = texture2d(gl, material.lobes, n, material.weight);
-  const tex = gl.createTexture();
-  gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
-  gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA16F, chain.width, chain.height, chain.levels.length);
-  chain.levels.forEach((bits, j) => {
-    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, j, chain.width, chain.height, 1, gl.RGBA, gl.HALF_FLOAT, bits);
-  });
-  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
-  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
-  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, gl.REPEAT);
-  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
-  return { shape, weight, chain: tex, material, chainInfo: chain };
+  const lobes = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D, lobes);
+  lobeSampling(gl);
+  uploadLobes(gl, material);
+  return { lobes, chain: uploadChain(gl, chain), material, chainInfo: chain };
 }
 
 /**
@@ -90,7 +128,7 @@ export function uploadGaussian(gl, material, chain) {
 export function chainFromLevels(result, rgbBuffers) {
   const { height, width } = result.levels[0];
   if (result.levels.some((lv) => lv.height !== height || lv.width !== width)) {
-    throw new Error('the chain\'s levels must share one size (one texture array)');
+    throw new Error('the chain\'s levels must share one size (one 3-D texture)');
   }
   const levels = rgbBuffers.map((buffer, j) => {
     const rgb = new Uint16Array(buffer);
@@ -109,8 +147,7 @@ export function chainFromLevels(result, rgbBuffers) {
 /** Bind the textures and the material's uniforms (the camera's are set by the caller). */
 export function bindGaussian(gl, prog, data) {
   gl.useProgram(prog);
-  const units = [[data.shape, gl.TEXTURE_2D, 'u_lobe_shape'], [data.weight, gl.TEXTURE_2D, 'u_lobe_weight'],
-    [data.chain, gl.TEXTURE_2D_ARRAY, 'u_chain']];
+  const units = [[data.lobes, gl.TEXTURE_2D, 'u_lobes'], [data.chain, gl.TEXTURE_3D, 'u_chain']];
   units.forEach(([tex, target, name], unit) => {
     gl.activeTexture(gl.TEXTURE0 + unit);
     gl.bindTexture(target, tex);

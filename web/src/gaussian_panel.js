@@ -10,7 +10,8 @@
 // a float target, read back as linear radiance and shown through the CPU display transform (tonemap.js).
 // window.relight.gaussian exposes the state for tests: materials, current, edits, pixels(), requests.
 import {
-  bindGaussian, cameraBasis, chainFromLevels, gaussianDefines, gaussianProgram, lobeSampling,
+  bindGaussian, cameraBasis, chainFromLevels, gaussianDefines, gaussianProgram, lobeSampling, uploadChain,
+  uploadLobes,
 } from './gaussian.js';
 import { floatToHalf, halfToFloat } from './half.js';
 import { tonemapImage } from './tonemap.js';
@@ -114,32 +115,16 @@ class GaussianView {
     this.quad = gl.createBuffer();
     gl.bindBuffer(gl.ARRAY_BUFFER, this.quad);
     gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 0, 3, -1, 0, -1, 3, 0]), gl.STATIC_DRAW);
-    this.shape = this.texture();
-    this.weight = this.texture();
-  }
-
-  texture() {
-    const gl = this.gl;
-    const tex = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, tex);
+    this.lobes = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, this.lobes);
     lobeSampling(gl);
-    return tex;
   }
 
-  /** The chain's levels (uniform size) as one RGBA16F array texture, uploaded once per chain. */
+  /** The chain's levels (uniform size) as one RGBA16F 3-D texture, uploaded once per chain. */
   setChain(chain) {
     const gl = this.gl;
     if (this.chainTex) gl.deleteTexture(this.chainTex);
-    this.chainTex = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.chainTex);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA16F, chain.width, chain.height, chain.levels.length);
-    chain.levels.forEach((bits, j) => {
-      gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, j, chain.width, chain.height, 1, gl.RGBA, gl.HALF_FLOAT, bits);
-    });
-    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
-    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
-    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, gl.REPEAT);
-    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    this.chainTex = uploadChain(gl, chain);
     this.chain = chain;
   }
 
@@ -153,12 +138,9 @@ class GaussianView {
         lobes: material.lobes, elevations: n, levels: this.chain.levels.length, sphere: true })));
     }
     const prog = this.programs.get(key);
-    for (const [tex, bits] of [[this.shape, material.shape], [this.weight, material.weight]]) {
-      gl.bindTexture(gl.TEXTURE_2D, tex);
-      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA16F, material.lobes, n, 0, gl.RGBA, gl.HALF_FLOAT, bits);
-    }
-    bindGaussian(gl, prog, { shape: this.shape, weight: this.weight, chain: this.chainTex, material,
-      chainInfo: this.chain });
+    gl.bindTexture(gl.TEXTURE_2D, this.lobes);
+    uploadLobes(gl, material);
+    bindGaussian(gl, prog, { lobes: this.lobes, chain: this.chainTex, material, chainInfo: this.chain });
     const len = Math.hypot(...VIEW);
     const v = VIEW.map((x) => x / len);
     const [right, up] = cameraBasis(v);

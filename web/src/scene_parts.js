@@ -11,7 +11,7 @@
 // (additive blending on the same geometry, drawn where the first part's depth is).
 import * as THREE from 'three';
 
-import { gaussianDefines } from './gaussian.js';
+import { gaussianDefines, lobeTexels, packLobes } from './gaussian.js';
 import { PrtObject } from './prt_object.js';
 import { build } from './shaders.js';
 import { latlongHalfTexture, objectViewDirection, withShaderAttributes } from './shrm_object.js';
@@ -22,8 +22,10 @@ export function partGeometry(geometry) {
     : geometry.clone());
 }
 
-function lobeTexture(bits, lobes, elevations) {
-  const tex = new THREE.DataTexture(bits, lobes, elevations, THREE.RGBAFormat, THREE.HalfFloatType);
+/** gaussian.glsl's u_lobes: the material's lobes packed (gaussian.js packLobes), one row per elevation. */
+function lobeTexture(material) {
+  const tex = new THREE.DataTexture(packLobes(material), lobeTexels(material.lobes), material.elevations.length,
+    THREE.RGBAFormat, THREE.HalfFloatType);
   tex.internalFormat = 'RGBA16F';
   tex.minFilter = THREE.LinearFilter; // gaussian.glsl: one filtered lookup interpolates the elevations
   tex.magFilter = THREE.LinearFilter;
@@ -73,11 +75,12 @@ export class GaussianPart extends Part {
     this.representation = 'gaussian_lobes';
     const { material, chain } = item;
     const n = material.elevations.length;
-    this.textures = [lobeTexture(material.shape, material.lobes, n), lobeTexture(material.weight, material.lobes, n)];
     const rgba = new Uint16Array(chain.levels.length * chain.height * chain.width * 4);
     chain.levels.forEach((lv, j) => rgba.set(lv, j * chain.height * chain.width * 4));
-    this.textures.push(latlongHalfTexture(new THREE.DataArrayTexture(rgba, chain.width, chain.height,
-      chain.levels.length)));
+    // the levels as the slices of a 3-D texture, filtered across them too (gaussian.glsl, gaussian.js uploadChain)
+    const chainTex = latlongHalfTexture(new THREE.Data3DTexture(rgba, chain.width, chain.height, chain.levels.length));
+    chainTex.wrapR = THREE.ClampToEdgeWrapping;
+    this.textures = [lobeTexture(material), chainTex];
     const shared = viewer.uniforms;
     this.uniforms = {
       u_view_projection: shared.u_view_projection,
@@ -86,9 +89,8 @@ export class GaussianPart extends Part {
       u_model: { value: new THREE.Matrix4() },
       u_normal_env: { value: new THREE.Matrix3() },
       u_view_direction: { value: new THREE.Vector3(0, 0, 1) },
-      u_lobe_shape: { value: this.textures[0] },
-      u_lobe_weight: { value: this.textures[1] },
-      u_chain: { value: this.textures[2] },
+      u_lobes: { value: this.textures[0] },
+      u_chain: { value: this.textures[1] },
       u_elevations: { value: Array.from(material.elevations) },
       u_chain_sigma0: { value: chain.sigma0 },
       u_chain_log_ratio: { value: chain.levels.length > 1 ? Math.log(chain.ratio) : 1.0 },
