@@ -103,6 +103,18 @@ class IblExport:
     job_id: str
 
 
+def with_seconds(manifest: dict[str, Any], stages: dict[str, Any]) -> dict[str, Any]:
+    """``relight export``'s sidecar from an ``ibl`` job's result: its ``manifest`` (stored without timings, so that
+    a job computed again writes the same bytes) with the seconds of the run that computed it put back from the
+    result's ``stage_seconds``, per stage (``seconds``) and per level (``levels[i].seconds``, stage ``level_NN``).
+    An SH export has no levels and no seconds."""
+    if "levels" not in manifest:
+        return manifest
+    levels = [{**row, "seconds": stages.get(f"level_{int(row['level']):02d}")} for row in manifest["levels"]]
+    return {**manifest, "levels": levels,
+            "seconds": {k: v for k, v in stages.items() if not str(k).startswith("level_")}}
+
+
 def ibl_params(target: str, format: str, size: int, levels: int | None, epsilon: float,
                sun: str, pixel_format: str = "rgba16f") -> dict[str, Any]:
     params: dict[str, Any] = {"target": target, "format": format, "size": size, "epsilon": epsilon, "sun": sun,

@@ -35,6 +35,7 @@ from relight.client.calls import (
     retry_wait,
     scene_body,
     tradeoff_body,
+    with_seconds,
 )
 from relight.client.errors import TransportError, from_httpx, from_response
 from relight.contract.models import (
@@ -204,7 +205,9 @@ class RelightClient:
         while answer.data is None:
             self.wait(answer.job_id, timeout=timeout)
             answer = self._do(call)
-        return IblExport(answer.data, self.job_result(answer.job_id)["manifest"], answer.job_id)
+        result = self.job_result(answer.job_id)
+        return IblExport(answer.data, with_seconds(result["manifest"], result.get("stage_seconds") or {}),
+                         answer.job_id)
 
     def get_shrm(self, shrm_id: str) -> ShrmManifest:
         return self._do(Calls.get_shrm(shrm_id))

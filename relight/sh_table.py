@@ -246,23 +246,27 @@ def manifest(table: SHTable) -> dict[str, Any]:
 def write_table(path: str | os.PathLike[str], table: SHTable) -> dict[str, Any]:
     """Write ``.npz`` (float32 ``coefficients`` R x R x n x C, ``views``, ``valid``, ``manifest`` JSON) or ``.exr``
     (one RGB layer ``c{i}`` per coefficient as float16, values beyond 65504 clamped and counted in the manifest's
-    ``float16_clamped``; layers ``views`` (x, y, z) and ``valid``). Returns the manifest."""
+    ``float16_clamped``; layers ``views`` (x, y, z) and ``valid``). The file is deterministic: its manifest leaves
+    out the report's ``seconds`` and the ``.npz`` is written by :func:`relight.npz.write_npz` (fixed member
+    timestamps). Returns the manifest, with the seconds."""
     from relight.envmap.exr import to_half_safe, write_exr_layers
+    from relight.npz import without_timings, write_npz
 
     p = Path(path)
     man = manifest(table)
     half, clamped = to_half_safe(table.coefficients)
     man["float16_clamped"] = clamped
+    stored = json.dumps(without_timings(man), sort_keys=True)  # no seconds: the same table gives the same bytes
     if p.suffix.lower() == ".npz":
-        np.savez_compressed(p, coefficients=table.coefficients.astype(np.float32), views=table.views,
-                            valid=table.valid, manifest=np.array(json.dumps(man, sort_keys=True)))
+        write_npz(p, {"coefficients": table.coefficients.astype(np.float32), "views": table.views,
+                      "valid": table.valid, "manifest": np.array(stored)})
     elif p.suffix.lower() == ".exr":
         rgb = np.broadcast_to(half, half.shape[:-1] + (3,)) if half.shape[-1] == 1 else half
         layers: dict[str, NDArray[np.floating]] = {f"c{i}": np.asarray(rgb[:, :, i], np.float32)
                                                      for i in range(rgb.shape[2])}
         layers["views"] = table.views
         layers["valid"] = np.repeat(table.valid[..., None], 3, axis=-1).astype(np.float32)
-        write_exr_layers(p, layers, half=True, attributes={"relight.shtable": json.dumps(man, sort_keys=True)})
+        write_exr_layers(p, layers, half=True, attributes={"relight.shtable": stored})
     else:
         raise InputError(f"the table file must end in .npz or .exr, got {p.name!r}")
     return man

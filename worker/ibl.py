@@ -1,10 +1,12 @@
 """The ``ibl`` job kind's task: an engine-ready export of an uploaded map (issue 17; ``relight.engine_export``).
 
 The request (``relight.contract.models.IblCreate``, canonicalised by ``relight.server.services.ibl``) names the map
-and the export; the result is the export's manifest (``relight export``'s sidecar: per-level roughness, method,
-orders, predicted error and App. B bound, seconds, SH9 in every convention, the sun report) and one or two files:
+and the export; the result is the export's manifest (``relight export``'s sidecar without its seconds: per-level
+roughness, method, orders, predicted error and App. B bound, SH9 in every convention, the sun report), the seconds
+per stage and level (``stage_seconds``: the job's ``measured`` record) and two files:
 ``chain.ktx2`` (format ``ktx2``: the KTX2 cube chain, byte-identical to ``relight export``'s for the same map and
-parameters) or ``sh.json`` (format ``sh``: the SH9 document), plus ``manifest.json``.
+parameters) or ``sh.json`` (format ``sh``: the SH9 document), plus ``manifest.json`` (the manifest: no timings, so
+that a job computed again writes the same bytes).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ JSON = "application/json"
 
 
 def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
-    from relight.engine_export import KTX2_MEDIA_TYPE, chain_export, sh_export
+    from relight.engine_export import KTX2_MEDIA_TYPE, chain_export, sh_export, without_seconds
     from relight.envmap import read_envmap
 
     t0 = time.perf_counter()
@@ -36,7 +38,10 @@ def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
         files = sh_export(env.pixels, source, sun_spec=request["sun"])
         name, media = "sh.json", JSON
     ctx.report.check_cancelled()
-    manifest_bytes = json.dumps(files.manifest, indent=2).encode("utf-8")
-    return {"manifest": files.manifest, "file": name, "task_seconds": time.perf_counter() - t0,
+    manifest = without_seconds(files.manifest)  # the timings go to the job's measured record, not into a file
+    stages = dict(files.manifest.get("seconds") or {})
+    stages |= {f"level_{row['level']:02d}": row["seconds"] for row in files.manifest.get("levels") or []}
+    manifest_bytes = json.dumps(manifest, indent=2).encode("utf-8")
+    return {"manifest": manifest, "file": name, "task_seconds": time.perf_counter() - t0, "stage_seconds": stages,
             "files": {name: {"sha256": ctx.store.put_bytes(files.data), "media_type": media},
                       "manifest.json": {"sha256": ctx.store.put_bytes(manifest_bytes), "media_type": JSON}}}

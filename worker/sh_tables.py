@@ -3,7 +3,8 @@
 Files: ``table.npz`` (``relight.sh_table.write_table``: float32 ``coefficients`` R x R x (F+1)^2 x C, ``views``,
 ``valid``, ``manifest``) and ``table.bin`` (the viewer's texture: little-endian float16 ``[(F+1)^2, R, R, C]``,
 values beyond 65504 clamped and counted in the manifest's ``float16_clamped``). The result is the manifest (order,
-layout, resolution, BRDF, seconds) plus the files. A measured BRDF arrives as ``{"kind": "merl", "sha256": ...}``
+layout, resolution, BRDF, seconds: the file's manifest leaves the seconds out, so that a table computed again is
+byte-identical) plus the files. A measured BRDF arrives as ``{"kind": "merl", "sha256": ...}``
 and is read from the blob store (``relight.worker.specs``).
 """
 
@@ -39,5 +40,6 @@ def compute_sh_table(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]
     texture = ctx.store.put_bytes(half.tobytes())
     manifest["files"] = {"table.bin": {"dtype": "float16", "byte_order": "little",
                                        "shape": list(half.shape), "order": "coefficient, row, column, channel"}}
-    return {"manifest": manifest, "files": {"table.npz": {"sha256": npz, "media_type": OCTET},
-                                            "table.bin": {"sha256": texture, "media_type": OCTET}}}
+    return {"manifest": manifest, "compute_seconds": table.report.get("seconds"),
+            "files": {"table.npz": {"sha256": npz, "media_type": OCTET},
+                      "table.bin": {"sha256": texture, "media_type": OCTET}}}

@@ -6,20 +6,19 @@
   ``texImage2D(TEXTURE_2D, 0, RGBA16F, width, height, 0, RGBA, HALF_FLOAT, data)``; the layout of each is in the
   manifest (``files[name].texture``).
 * ``visibility.npz``: every per-vertex array as float32 (with the ``*_error`` standard errors), for tools; written
-  with fixed zip timestamps so that a recomputed result is byte-identical.
+  deterministically (``relight.npz``: sorted members, fixed zip timestamps) so that a recomputed result is
+  byte-identical.
 * ``manifest.json``: canonical JSON; its digest identifies the result, and the ref ``job-<job id>`` names it (a
   job re-run after a crash finds it instead of computing again, as SHRM results).
 """
 
 from __future__ import annotations
 
-import io
-import zipfile
 from typing import Any, Final
 
 import numpy as np
-from numpy.typing import NDArray
 
+from relight.npz import npz_bytes
 from relight.worker.blobs import BlobStore
 from relight.worker.results import canonical_json, job_ref
 
@@ -28,19 +27,6 @@ MANIFEST_VERSION: Final = 1
 NPZ_NAME: Final = "visibility.npz"
 #: Arrays that get a float16 data texture (the rest is in the NPZ only).
 TEXTURES: Final = ("ao", "visibility", "transfer", "shadow_matrix")
-
-
-def npz_bytes(arrays: dict[str, NDArray[Any]]) -> bytes:
-    """An ``.npz`` (``numpy.load`` reads it) with entries in sorted order and fixed timestamps."""
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for name in sorted(arrays):
-            member = io.BytesIO()
-            np.lib.format.write_array(member, np.ascontiguousarray(arrays[name]), allow_pickle=False)
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            zf.writestr(info, member.getvalue())
-    return buf.getvalue()
 
 
 def write_visibility_result(store: BlobStore, job_id: str, request: dict[str, Any], arrays: dict[str, Any],
@@ -62,7 +48,7 @@ def write_visibility_result(store: BlobStore, job_id: str, request: dict[str, An
             "webgl": {"target": "TEXTURE_2D", "internalformat": "RGBA16F", "format": "RGBA", "type": "HALF_FLOAT",
                       "width": layout["width"], "height": layout["height"]},
         }
-    npz = npz_bytes({k: np.asarray(v, dtype=np.float32) for k, v in arrays.items()})
+    npz = npz_bytes({k: np.asarray(arrays[k], dtype=np.float32) for k in sorted(arrays)})
     files[NPZ_NAME] = {"sha256": store.put_bytes(npz), "bytes": len(npz), "media_type": "application/x-npz",
                        "dtype": "float32", "arrays": {k: list(np.shape(v)) for k, v in sorted(arrays.items())}}
     manifest: dict[str, Any] = {

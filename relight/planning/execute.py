@@ -88,12 +88,13 @@ def compute_shadows(shadows: ShadowPlan, mesh: Any, bounces: int = 0, albedo: fl
 
 def save_transfer(path: Path, mesh: Any, transfer: Any) -> None:
     """``<object>.transfer.npz``: the arrays of ``relight visibility --out`` (positions, normals, faces, ao,
-    visibility, transfer and their errors, manifest)."""
-    arrays: dict[str, Any] = {"positions": mesh.positions.astype(np.float32),
-                              "normals": mesh.normals.astype(np.float32), "faces": mesh.faces.astype(np.int32),
-                              **transfer.arrays, "manifest": np.array(json.dumps(jsonable(transfer.manifest)))}
-    with open(path, "wb") as fh:
-        np.savez_compressed(fh, **arrays)
+    visibility, transfer and their errors, manifest), deterministic (``relight.npz``: no timings in the manifest,
+    fixed member timestamps)."""
+    from relight.npz import without_timings, write_npz
+
+    manifest = json.dumps(without_timings(jsonable(transfer.manifest)), sort_keys=True)
+    write_npz(path, {"positions": mesh.positions.astype(np.float32), "normals": mesh.normals.astype(np.float32),
+                     "faces": mesh.faces.astype(np.int32), **transfer.arrays, "manifest": np.array(manifest)})
 
 
 def run_plan(

@@ -72,11 +72,12 @@ def _chain(plan: Plan, job: PlannedJob) -> tuple[dict[str, Any], dict[str, bytes
 
 
 def _npz(arrays: dict[str, Any]) -> bytes:
-    import io
+    """A deterministic archive (``relight.npz``) whose ``manifest`` member carries no timings: a scene computed
+    again stores the same bytes."""
+    from relight.npz import npz_bytes, without_timings
 
-    buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
-    return buf.getvalue()
+    return npz_bytes({**arrays, "manifest": np.array(json.dumps(without_timings(arrays["manifest"]),
+                                                                sort_keys=True))})
 
 
 def _table(job: PlannedJob) -> tuple[dict[str, Any], dict[str, bytes], Any]:
@@ -87,7 +88,7 @@ def _table(job: PlannedJob) -> tuple[dict[str, Any], dict[str, bytes], Any]:
                         resolution=int(job.params["resolution"]))
     man = manifest(table)
     arrays = {"coefficients": table.coefficients.astype(np.float32), "views": table.views, "valid": table.valid,
-              "manifest": np.array(json.dumps(jsonable(man), sort_keys=True))}
+              "manifest": jsonable(man)}
     return {"order": table.order, "resolution": table.resolution, "layout": table.layout}, {"npz": _npz(arrays)}, table
 
 
@@ -100,7 +101,7 @@ def _transfer(plan: Plan, job: PlannedJob) -> tuple[dict[str, Any], dict[str, by
                                                   kind=kind))
     arrays = {"positions": mesh.positions.astype(np.float32), "normals": mesh.normals.astype(np.float32),
               "faces": mesh.faces.astype(np.int32), **res.arrays,
-              "manifest": np.array(json.dumps(jsonable(res.manifest)))}
+              "manifest": jsonable(res.manifest)}
     summary: dict[str, Any] = {k: res.manifest[k] for k in ("order", "rays", "vertices", "monte_carlo_error_rms")
                                if k in res.manifest}
     return summary, {"npz": _npz(arrays)}, res
@@ -122,7 +123,7 @@ def _inout(plan: Plan, job: PlannedJob) -> tuple[dict[str, Any], dict[str, bytes
     arrays = {"transport": out["transport"].astype(np.float32), "transport_error": out["transport_error"]
               .astype(np.float32), "factors": factor_texture(factors), "positions": mesh.positions.astype(np.float32),
               "normals": mesh.normals.astype(np.float32), "faces": mesh.faces.astype(np.int32),
-              "manifest": np.array(json.dumps(jsonable(summary)))}
+              "manifest": jsonable(summary)}
     return summary, {"npz": _npz(arrays)}, {"factors": factors, **out}
 
 

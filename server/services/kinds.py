@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING, Any
 from pydantic import BaseModel
 
 import relight
-from relight.server.db import Job
-from relight.server.services.base import content_id
+from relight.contract.models import Measurement
+from relight.server.db import Job, utcnow
+from relight.server.services.base import aware, content_id
 from relight.worker.progress import Task
 
 if TYPE_CHECKING:
@@ -52,9 +53,30 @@ class Submission:
 Prepare = Callable[[Any, "Services"], Awaitable["dict[str, Any] | Submission"]]
 
 
+def measurement(row: Job, result: dict[str, Any]) -> dict[str, Any]:
+    """The row's ``measured`` record from a task's timings: the wall time since the first submission, and the
+    result's ``task_seconds``, ``compute_seconds`` and ``stage_seconds`` (name -> seconds) where it has them.
+    Timings live here and in the row's result, never in a stored file: a file computed again is byte-identical."""
+    submitted = aware(row.submitted_at) or utcnow()
+    stages = result.get("stage_seconds")
+
+    def seconds(key: str) -> float | None:
+        value = result.get(key)
+        return float(value) if isinstance(value, int | float) else None
+
+    return Measurement(
+        seconds=(utcnow() - submitted).total_seconds(), task_seconds=seconds("task_seconds"),
+        compute_seconds=seconds("compute_seconds"),
+        stage_seconds={str(k): float(v) for k, v in stages.items() if isinstance(v, int | float)}
+        if isinstance(stages, dict) else None,
+    ).model_dump(mode="json")
+
+
 def keep_result(row: Job, result: dict[str, Any]) -> None:
-    """The default: the task's (small, JSON) result is the row's ``result``."""
+    """The default: the task's (small, JSON) result is the row's ``result``; its timings are also the row's
+    ``measured`` record (:func:`measurement`)."""
     row.result = result
+    row.measured = measurement(row, result)
 
 
 def job_links(job_id: str, result: dict[str, Any] | None) -> dict[str, str]:

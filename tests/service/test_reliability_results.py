@@ -2,8 +2,9 @@
 and never reported "succeeded" for good; against a real server on loopback, one small job of every kind with files.
 
 * **Deleted.** A scene whose file was deleted from the blob store was resubmitted and answered 200 "succeeded"
-  without computing anything, and the file stayed gone. Now resubmitting a job whose stored file is missing answers
-  202 and computes it again; the file comes back bit-identical (same SHA-256, the kinds are deterministic).
+  without computing anything, and the file stayed gone. Now resubmitting a job whose stored files are missing
+  answers 202 and computes it again; every file comes back byte-identical (same SHA-256: stored files carry no
+  timings and no zip timestamps, the kinds are deterministic), the manifest of shrm and visibility results too.
 * **Corrupted in place** (same inode and size, mtime put back): ``GET`` of the file answers 503 with ``Retry-After``
   (never the bytes), the job is queued again by itself, and the next ``GET`` after it finishes serves the file
   with the old digest.
@@ -21,6 +22,9 @@ from typing import Any
 
 import httpx
 import pytest
+
+from relight.worker.blobs import BlobStore
+from relight.worker.results import job_ref
 
 from .routes.test_meshes import cube_obj
 from .support import Server, exr_bytes, make_envmap, start_server, wait_until
@@ -61,6 +65,13 @@ CASES: dict[str, Case] = {
                                     "objects": [{"name": "chalk", "size": 1, "distance": 10,
                                                  "material": "lambert:albedo=0.7"}]},
               "/scenes/{id}/files/{name}"),
+    # planner v2's archives: the uploaded mesh's shadowed transfer (``chalk.transfer.npz``) and the anisotropic
+    # BRDF's SH table (``job<NN>-sh_table.npz``), each with a manifest inside
+    "scene_archives": ("/scenes", lambda i: {"environment": i["env"], "epsilon": 0.05, "size": 8, "objects": [
+        {"name": "chalk", "mesh": i["mesh"], "size": 1, "distance": 10, "material": "lambert:albedo=0.7"},
+        {"name": "brushed", "size": 1, "distance": 10, "material": "ashikhmin-shirley:nu=24,nv=8,rs=0.05,rd=0",
+         "tangent": {"kind": "project", "direction": [1, 0, 0]}, "shadows": "none"}]},
+        "/scenes/{id}/files/{name}"),
     "shrm": ("/shrms", lambda i: {"envmap": i["env"], "brdf": "phong:s=8", "order": 4, "size": 8},
              "/shrms/{id}/{name}"),
     "visibility": ("/visibility", lambda i: {"mesh": i["mesh"], "order": 2, "rays": 64, "kind": "diffuse_transfer"},
@@ -79,12 +90,6 @@ CASES: dict[str, Case] = {
     "sh_transfer": ("/jobs", lambda i: {"mesh": i["mesh"], "brdf": "phong:s=8", "order": 2, "resolution": 8,
                                         "rays": 64}, "/jobs/{id}/files/{name}"),
 }
-
-
-#: Files whose bytes differ between two runs of one job: the export manifest's timings ("seconds", part of
-#: ``relight export``'s manifest) and the zip members' timestamps that ``numpy.savez_compressed`` writes. Only
-#: their integrity is checked after a recomputation; every other file must come back bit-identical.
-VOLATILE = {("ibl", "manifest.json"), ("sh_table", "table.npz")}
 
 
 def submit(http: httpx.Client, kind: str, inputs: dict[str, str]) -> httpx.Response:
@@ -114,6 +119,16 @@ def files_of(http: httpx.Client, kind: str, job_id: str) -> dict[str, str]:
     return out
 
 
+def stored_of(http: httpx.Client, data_dir: Path, kind: str, job_id: str) -> dict[str, str]:
+    """Every blob the job's result consists of: its files and, for the kinds whose result is a manifest named by
+    the ref ``job-<id>`` (shrm, visibility), that manifest."""
+    out = files_of(http, kind, job_id)
+    manifest = BlobStore(data_dir / "blobs").get_ref(job_ref(job_id))
+    if manifest is not None:
+        out["(manifest ref)"] = manifest
+    return out
+
+
 def blob_path(data_dir: Path, digest: str) -> Path:
     return data_dir / "blobs" / "sha256" / digest[:2] / digest[2:4] / digest
 
@@ -137,27 +152,32 @@ def test_a_lost_or_corrupt_result_file_is_recomputed_never_served(kind: str, htt
     first = submit(http, kind, inputs)
     assert first.status_code in (200, 202), first.text
     job_id = first.json()["id"]
-    finished(http, job_id)
+    measured = finished(http, job_id)["measured"]  # the timings are the job's record, not in its files
+    assert measured is not None and measured["seconds"] > 0, measured
+    if kind == "ibl":
+        assert measured["stage_seconds"]["level_00"] > 0 and measured["task_seconds"] > 0, measured
     files = files_of(http, kind, job_id)
+    stored = stored_of(http, data_dir, kind, job_id)
     url = CASES[kind][2]
-    names = sorted(n for n in files if (kind, n) not in VOLATILE)
+    names = sorted(files)
     for name in names:  # all served, each verified against its name
         r = http.get(url.format(id=job_id, name=name))
         assert r.status_code == 200, (name, r.text)
         assert hashlib.sha256(r.content).hexdigest() == files[name]
 
-    # 1. a deleted file: resubmitting computes the job again (202), never "succeeded" from the cache (200)
-    lost = names[0]
-    blob_path(data_dir, files[lost]).unlink()
+    # 1. every blob of the result deleted: resubmitting computes the job again (202), never "succeeded" from the
+    # cache (200), and the recomputed result is byte-identical, every file and manifest of it (no timings or zip
+    # timestamps in stored files: relight.npz, the ibl manifest without seconds)
+    for digest in set(stored.values()):
+        blob_path(data_dir, digest).unlink()
     again = submit(http, kind, inputs)
     assert again.status_code == 202, (again.status_code, again.text)
     assert again.json()["id"] == job_id
     finished(http, job_id)
-    recomputed = files_of(http, kind, job_id)
-    assert {n: d for n, d in recomputed.items() if n in names} == {n: files[n] for n in names}  # the same bytes
-    assert set(recomputed) == set(files)
-    r = http.get(url.format(id=job_id, name=lost))
-    assert r.status_code == 200 and hashlib.sha256(r.content).hexdigest() == files[lost]
+    assert stored_of(http, data_dir, kind, job_id) == stored  # the same bytes, every file
+    for name in names:
+        r = http.get(url.format(id=job_id, name=name))
+        assert r.status_code == 200 and hashlib.sha256(r.content).hexdigest() == files[name], name
 
     # 2. a file corrupted in place: 503 with Retry-After on GET (the job queued again), then the file again
     bad = names[-1]
