@@ -1,6 +1,7 @@
 """Fault injection at the points that matter (issue 12, item 5): a job is held (``relight.worker.faults``, TEST ONLY)
 inside its computation, after its result's blobs are written but before the ref naming them, and in the server
-before the job row is updated; there the worker, the whole server, or the scheduler is killed with SIGKILL.
+before the job row is updated; there the worker, the whole server, or the scheduler (of the deployment's form:
+``relight scheduler`` and ``relight worker`` processes on mutual TLS) is killed with SIGKILL.
 
 After each kill the job must finish once (one manifest, one ref, state succeeded), its result must equal the
 library's bit for bit, and the blob store must hold exactly what it held before plus that result: no orphan blob,
@@ -37,7 +38,7 @@ from .support import (
     wait_until,
 )
 from .test_resilience import worker_pid
-from .test_scale_out import free_port
+from .test_scale_out import free_port, tls_init
 
 pytestmark = pytest.mark.timeout(600)
 SPEC = "phong:s=16"
@@ -231,23 +232,29 @@ def test_cancel_mid_computation_stops_the_worker(faulty: dict[str, object], data
 @pytest.fixture(scope="module")
 def external(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, object]]:
     """A separately started scheduler and two ``relight worker`` processes (what a deployment supervises and
-    restarts), and a server pointed at them."""
+    restarts), and a server pointed at them: the documented deployment, every connection mutual TLS with the
+    certificate of ``relight tls init`` (``relight scheduler --tls-*``, the workers and the server from the
+    ``RELIGHT_TLS_*`` environment), as in the compose file."""
     tmp = tmp_path_factory.mktemp("faulty-external")
     faults = tmp_path_factory.mktemp("faults-external")
     port = free_port()
+    address = f"tls://127.0.0.1:{port}"
+    tls = tls_init(tmp / "certs")
     env = {"RELIGHT_TEST_FAULT_DIR": str(faults)}
     procs: dict[str, Proc] = {}
+    log_no = iter(range(1000))
 
     def start_scheduler() -> Proc:
-        sched = Proc([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
-                      str(port), "--no-dashboard"], base_env(env), tmp / "scheduler.log").start()
-        wait_until(lambda: f"127.0.0.1:{port}" in sched.output().split("Scheduler at")[-1], 60,
-                   "the scheduler to start")
+        log = tmp / f"scheduler{next(log_no)}.log"  # one log per start: the address line is this start's
+        sched = Proc([sys.executable, "-m", "relight.cli", "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                      "--tls-ca-file", tls["RELIGHT_TLS_CA_FILE"], "--tls-cert", tls["RELIGHT_TLS_CERT"],
+                      "--tls-key", tls["RELIGHT_TLS_KEY"]], base_env(env), log).start()
+        wait_until(lambda: f"relight: scheduler at {address}" in sched.output(), 60, "the scheduler to start")
         return sched
 
     def start_worker(i: int) -> Proc:
-        return Proc([sys.executable, "-m", "relight.cli", "worker", "--scheduler", f"tcp://127.0.0.1:{port}",
-                     "--name", f"relight-w{i}", "--host", "127.0.0.1", "--memory-limit", "2GiB"], base_env(env),
+        return Proc([sys.executable, "-m", "relight.cli", "worker", "--scheduler", address, "--name",
+                     f"relight-w{i}", "--host", "127.0.0.1", "--memory-limit", "2GiB"], base_env({**env, **tls}),
                     tmp / f"worker{i}.log").start()
 
     state: dict[str, object] = {"tmp": tmp, "faults": faults, "procs": procs, "start_scheduler": start_scheduler,
@@ -256,7 +263,7 @@ def external(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, obj
         procs["scheduler"] = start_scheduler()
         for i in range(2):
             procs[f"worker{i}"] = start_worker(i)
-        server = start_server(tmp / "server", {**env, "RELIGHT_SCHEDULER": f"tcp://127.0.0.1:{port}"})
+        server = start_server(tmp / "server", {**env, **tls, "RELIGHT_SCHEDULER": address})
         procs["server"] = server
         with server.client() as c:
             wait_until(lambda: c.health().workers == 2, 90, "both workers to join the scheduler", interval=0.2)
