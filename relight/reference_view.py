@@ -315,3 +315,25 @@ def reference_sphere(
     out = np.full((size, size, 3), float(background))
     out[mask] = reflected_radiance(pixels, brdf, n[mask], v, truncation=truncation)
     return out
+
+
+def directional_view(brdf: Any, direction: NDArray[np.floating], irradiance_rgb: NDArray[np.floating],
+                     view: NDArray[np.floating], size: int) -> FloatArray:
+    """Reflection map (indexed by R as :func:`reference_view`, (S, 2S, 3)) of a directional light of RGB
+    irradiance ``E`` (at normal incidence) from ``direction``: ``B(N, V) = E f(s, V, N) max(N . s, 0)``, the
+    integrand of eq. 1 at the one direction s (an extracted sun, ``relight.sun``)."""
+    validate.at_least("size", size, 1)
+    v = unit_view(view)
+    s = np.asarray(direction, dtype=np.float64)
+    s = s / np.linalg.norm(s)
+    e = np.asarray(irradiance_rgb, dtype=np.float64)
+    r = latlong_dirs(size, 2 * size).reshape(-1, 3)
+    n, ok = halfway_normals(r, v)
+    out = np.zeros((r.shape[0], 3))
+    nrm = n[ok]
+    for lobe in brdf_lobes(brdf):
+        c = lobe_centres(str(lobe.center), nrm, reflect_dirs(nrm, v))
+        val = _integrand(lobe, s[None], v[None], nrm, c)
+        facing = (nrm @ v) > 0.0
+        out[ok] += np.where(facing[:, None], val * e, 0.0)
+    return out.reshape(size, 2 * size, 3)
