@@ -105,7 +105,9 @@ def run_scene(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
                    for entry in result.objects]
         objects = [_add_prt(store, plan, Path(tmp), entry, files) if entry.files.transfer else entry
                    for entry in objects]
-        result = dataclasses.replace(result, objects=objects)
+        result = dataclasses.replace(result, objects=objects, jobs=[_add_inout(store, plan, Path(tmp), run, files)
+                                                                    if run.kind == "inout_transport" and run.executed
+                                                                    else run for run in result.jobs])
     out: dict[str, Any] = _jsonable({"plan": from_core(plan.report.to_json(), store),
                                      "result": from_core(result.to_json(), store), "files": files})
     return out
@@ -130,6 +132,15 @@ def _add_prt(store: BlobStore, plan: Any, tmp: Path, entry: ObjectResult,
     assert shadows is not None and entry.files.transfer is not None
     return add_transfer_texture(store, (tmp / entry.files.transfer).read_bytes(), plan.meshes[shadows.mesh], entry,
                                 files)
+
+
+def _add_inout(store: BlobStore, plan: Any, tmp: Path, run: Any, files: dict[str, dict[str, Any]]) -> Any:
+    """The viewer's form of a planned in-out transport (``relight.worker.scene_prt``), for the plan's mesh."""
+    from relight.worker.scene_prt import add_inout_textures
+
+    job = next(j for j in plan.report.jobs if j.id == run.id)
+    npz = next(f for f in run.files if f.endswith(".npz"))
+    return add_inout_textures(store, (tmp / npz).read_bytes(), plan.meshes[job.params["mesh"]], run, files)
 
 
 def _add_texture(store: BlobStore, shrm_path: Path, entry: ObjectResult,

@@ -11,6 +11,12 @@ browser cannot read. :func:`add_transfer_texture` stores, next to it, exactly wh
 * ``{name}.prt.json``: a manifest with both: ``order``, ``geometry`` (``sha256`` and the section layout),
   ``bounds`` and ``bounding_radius`` (for ``TriangleMesh.normalised``'s placement), ``files["transfer.bin"]``
   with its ``texture`` layout, and the transfer's measured Monte Carlo error.
+
+A planned ``inout_transport`` job (seed 004, shared by the objects listed for it) has its transport in
+``P.npz``; :func:`add_inout_textures` stores what ``web/src/inout_object.js`` reads for an ``inout_prt`` job:
+``P.transport.bin`` (float16 RGBA vertex texture), ``P.factors.bin`` (float32 R32F rows: m, parity, sigma_k h_k),
+``P.geometry.bin`` and ``P.inout.json`` (the job's summary: terms, m, parity, sigma, order, ..., with
+``transport_texture``, ``factors_texture``, ``geometry``, ``bounds`` and ``bounding_radius``).
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from relight.planning.report import ObjectResult
+from relight.planning.report import JobRun, ObjectResult
 from relight.worker.blobs import BlobStore
 
 MANIFEST_FORMAT: Final = "relight.scene-prt"
@@ -34,6 +40,42 @@ def _put(store: BlobStore, files: dict[str, dict[str, Any]], name: str, data: by
     digest = store.put_bytes(data)
     files[name] = {"sha256": digest, "bytes": len(data), "media_type": media_type}
     return digest
+
+
+def _placement(mesh: Any) -> dict[str, Any]:
+    lo, hi = mesh.positions.min(axis=0), mesh.positions.max(axis=0)
+    return {"bounds": {"min": [float(x) for x in lo], "max": [float(x) for x in hi]},
+            "bounding_radius": float(mesh.radius)}
+
+
+def add_inout_textures(store: BlobStore, npz: bytes, mesh: Any, run: JobRun,
+                       files: dict[str, dict[str, Any]]) -> JobRun:
+    """Store the viewer's files for one ``inout_transport`` job (module docstring): ``npz`` is its ``P.npz``,
+    ``mesh`` the plan's mesh it was computed for. Adds them to ``files`` and returns the run listing them too."""
+    from relight.mesh import geometry
+    from relight.vertex_texture import pack_float16
+    from relight.worker.results import canonical_json
+
+    stem = next(f for f in run.files if f.endswith(".npz"))[: -len(".npz")]
+    with np.load(io.BytesIO(npz), allow_pickle=False) as z:
+        transport = np.asarray(z["transport"], dtype=np.float32)
+        factors = np.ascontiguousarray(z["factors"], dtype="<f4")
+        summary = json.loads(str(z["manifest"]))
+    if transport.shape[0] != mesh.n_vertices:
+        raise ValueError(f"planned job {run.id}: its transport does not belong to the plan's mesh")
+    blob, lay = geometry.to_bytes(mesh)
+    names = {k: f"{stem}.{k}" for k in ("geometry.bin", "transport.bin", "factors.bin", "inout.json")}
+    digest = _put(store, files, names["geometry.bin"], blob)
+    tex, layout = pack_float16(transport)
+    _put(store, files, names["transport.bin"], np.ascontiguousarray(tex).astype("<f2", copy=False).tobytes())
+    _put(store, files, names["factors.bin"], factors.tobytes())
+    manifest = {**summary, "format": "relight.scene-inout", "format_version": MANIFEST_VERSION, "job": run.id,
+                "transport_texture": {**layout, "name": names["transport.bin"]},
+                "factors_texture": {"width": int(factors.shape[1]), "height": int(factors.shape[0]), "format": "R32F",
+                                    "name": names["factors.bin"]},
+                "geometry": {"sha256": digest, "name": names["geometry.bin"], **lay}, **_placement(mesh)}
+    _put(store, files, names["inout.json"], canonical_json(manifest), "application/json")
+    return dataclasses.replace(run, files=[*run.files, *names.values()])
 
 
 def add_transfer_texture(store: BlobStore, npz: bytes, mesh: Any, entry: ObjectResult,
@@ -57,13 +99,11 @@ def add_transfer_texture(store: BlobStore, npz: bytes, mesh: Any, entry: ObjectR
     tex, layout = pack_float16(transfer)
     data = np.ascontiguousarray(tex).astype("<f2", copy=False).tobytes()
     transfer_digest = _put(store, files, f"{name}.transfer.bin", data)
-    lo, hi = mesh.positions.min(axis=0), mesh.positions.max(axis=0)
     manifest = {
         "format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION, "object": name, "order": int(run["order"]),
         "rays": int(run["rays"]), "monte_carlo_error_rms": run.get("monte_carlo_error_rms"),
         "geometry": {"sha256": geometry_digest, "name": f"{name}.geometry.bin", **lay},
-        "bounds": {"min": [float(x) for x in lo], "max": [float(x) for x in hi]},
-        "bounding_radius": float(mesh.radius),
+        **_placement(mesh),
         "files": {"transfer.bin": {"sha256": transfer_digest, "name": f"{name}.transfer.bin", "bytes": len(data),
                                    "dtype": "float16", "byte_order": "little", "texture": layout}},
     }

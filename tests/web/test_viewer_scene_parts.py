@@ -19,6 +19,8 @@ Checks:
   tolerances: 2 levels, mean under 0.2, 0.5 % of pixels off at occlusion boundaries), and its unshadowed form
   (``relight.mesh_render.unshadowed_transfer``) the same way; where the CPU says the bunny shadows itself (shadowed
   below 0.8 of unshadowed), the page's shadowed pixels are darker than its unshadowed ones.
+
+A second scene draws a glossy bunny with shadows by seed 004's in-out PRT (InOutPart) against its CPU twin.
 """
 
 from __future__ import annotations
@@ -35,10 +37,14 @@ from relight.brdf.gaussian_lobes import GaussianLobes
 from relight.envmap import tonemap
 from relight.gaussian_chain import ChainLevel, GaussianChain
 from relight.gl.prt import rotate_lighting_y
+from relight.inout_factors import InOutFactors
+from relight.inout_prt import shade
 from relight.mesh import geometry
 from relight.mesh.model import TriangleMesh
 from relight.mesh_render import interpolate, surface_samples, unshadowed_transfer
 from relight.sg_render import shade_gaussian
+from relight.tangent_frames import azimuthal_frames
+from relight.vertex_texture import unpack_float16
 from tests.web.conftest import screenshot
 from tests.web.test_viewer_browser import upload_map
 
@@ -236,3 +242,60 @@ def test_scene_with_three_representations(page: Any, tmp_path: Any, viewer_serve
     ratio = (shadowed @ lum)[occluded] / (flat @ lum)[occluded]
     print(f"bunny: {occluded.sum()} self-shadowed pixels, page shadowed / unshadowed median {np.median(ratio):.3f}")
     assert np.median(ratio) < 0.8 and (ratio < 1.0).mean() > 0.99
+
+
+def test_scene_with_in_out_prt(page: Any, tmp_path: Any, viewer_server: Any) -> None:
+    """A glossy bunny with shadows (Phong s = 4: K = 6 in-out terms, seed 004) drawn from the plan's shared
+    ``inout_transport`` job (InOutPart), against ``relight.inout_prt.shade`` of the very float16 transport and float32
+    factor rows the page downloaded, with tests/web/test_inout_browser.py's tolerances (same data path: 2 levels plus
+    the CPU image's largest difference to a 4-neighbour, for the rasteriser's sub-pixel snapping; mean under 1)."""
+    env = upload_map(page, tmp_path, name="scene-inout-sky.exr")
+    scene = {"name": "glossy-bunny", "environment": env, "epsilon": 0.2, "size": 16, "objects": [
+        {"name": "glossy", "shape": "bunny", "size": 1, "distance": 4, "material": {"kind": "phong", "s": 4},
+         "view": [0, 0, 1], "shadows": "exact"}]}
+    page.fill("#scene-json", json.dumps(scene))
+    page.click("#scene-run")
+    page.wait_for_function("window.relight.sceneShown === window.relight.scene?.id"
+                           " || document.getElementById('scene-error').textContent", timeout=300_000)
+    assert page.inner_text("#scene-error") == ""
+    assert page.evaluate("window.relight.sceneErrors") == []
+    pub = page.evaluate("window.relight.scene")
+    assert [r["representation"] for r in pub["plan"]["objects"][0]["representations"]] == ["inout_prt"]
+    assert [(p["name"], p["kind"]) for p in page.evaluate(PARTS)] == [("glossy", "inout_prt")]
+    got, cov = part_linear(page, "glossy")
+
+    files = scene_files(viewer_server, pub)
+    run = next(j for j in pub["result"]["jobs"] if j["kind"] == "inout_transport")
+    res = json.loads(files[next(f for f in run["files"] if f.endswith(".inout.json"))])
+    lay, geo = res["transport_texture"], res["geometry"]
+    mesh = geometry.from_bytes(files[geo["name"]], geo["vertices"], geo["faces"])
+    bits = np.frombuffer(files[lay["name"]], dtype="<f2")
+    transport = unpack_float16(bits.reshape(lay["height"], lay["width"], 4), lay).astype(np.float64)
+    k = res["terms"]
+    rows = np.frombuffer(files[res["factors_texture"]["name"]], dtype="<f4").reshape(k, -1).astype(np.float64)
+    n_tab = rows.shape[1] - 2
+    f = InOutFactors(np.ones(k), rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64), np.zeros((k, n_tab)),
+                     rows[:, 2:], np.linspace(0.0, 0.5 * np.pi, n_tab), True, res["captured"], "page")
+    with httpx.Client(base_url=viewer_server.url, timeout=60) as http:
+        texture = http.get(f"/envmaps/{env}/texture.bin?rows=256")
+        shape = [int(x) for x in texture.headers["X-Texture-Shape"].split(",")]
+        px16 = np.frombuffer(texture.content, dtype="<f2").astype(np.float64).reshape(shape)
+    order = res["order"]
+    lighting = rotate_lighting_y(np.asarray(sh.to_real(sh.project(px16, order, weights="area"), order).T), ROTATION)
+    page_light = np.asarray(page.evaluate("""() => window.relight.viewer.sceneObjects[0].inout.currentLighting()"""))
+    np.testing.assert_allclose(page_light, lighting, rtol=0, atol=1e-5 * np.abs(lighting).max())
+    v = np.asarray(VIEW) / np.linalg.norm(VIEW)
+    per_vertex = shade(f, transport, lighting, azimuthal_frames(mesh.normals), v)
+    samples = surface_samples(mesh.normalised(), np.asarray(VIEW), SIZE, supersample=1)
+    covered = samples.coverage == 1.0
+    want = tonemap(samples.image(interpolate(samples, mesh, per_vertex)), exposure=0.0, operator="aces").astype(int)
+    a = tonemap(got, exposure=0.0, operator="aces").astype(int)
+    diff = np.abs(a - want).max(axis=2)
+    near = np.zeros(diff.shape)
+    for axis in (0, 1):
+        for step in (1, -1):
+            near = np.maximum(near, np.abs(want - np.roll(want, step, axis=axis)).max(axis=2))
+    assert covered.sum() > 0.2 * SIZE * SIZE and (cov ^ covered).mean() < 0.005
+    print(f"in-out part vs CPU: {int((diff > 2 + near)[covered].sum())} pixels beyond, mean {diff[covered].mean():.2f}")
+    assert np.all(diff[covered] <= 2 + near[covered]), int((diff > 2 + near)[covered].sum())
+    assert diff[covered].mean() < 1.0, diff[covered].mean()

@@ -42,6 +42,8 @@ export class InOutObject {
       u_factors: { value: null },
       u_output_size: { value: new THREE.Vector2(1, 1) },
     };
+    this.placement = new THREE.Matrix4(); // where the unit-ball mesh goes (a scene object: centre, radius)
+    this.normalise = new THREE.Matrix4();
     this.mesh = new THREE.Mesh(new THREE.BufferGeometry(), null);
     this.mesh.frustumCulled = false;
     this.mesh.visible = false;
@@ -67,8 +69,15 @@ export class InOutObject {
     const [lo, hi] = [info.bounds.min, info.bounds.max];
     const c = lo.map((v, k) => 0.5 * (v + hi[k]));
     const s = 1 / (info.bounding_radius > 0 ? info.bounding_radius : 1);
-    this.uniforms.u_model.value.set(s, 0, 0, -c[0] * s, 0, s, 0, -c[1] * s, 0, 0, s, -c[2] * s, 0, 0, 0, 1);
+    this.normalise.set(s, 0, 0, -c[0] * s, 0, s, 0, -c[1] * s, 0, 0, s, -c[2] * s, 0, 0, 0, 1);
+    this.uniforms.u_model.value.multiplyMatrices(this.placement, this.normalise);
     this.meshInfo = info;
+  }
+
+  /** Place the unit-ball mesh: centre [x, y, z] and bounding radius (a scene object); the origin and 1 by default. */
+  setPlacement(center, radius) {
+    this.placement.makeScale(radius, radius, radius).setPosition(...center);
+    this.uniforms.u_model.value.multiplyMatrices(this.placement, this.normalise);
   }
 
   /** An inout_prt job's result (GET /jobs/{id}/result) and its files {'transport.bin', 'factors.bin'}. */

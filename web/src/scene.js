@@ -65,7 +65,7 @@ export function objectPosition(o) {
 /** Representations drawn by the object's SHRM (seed 000: the run synthesises their lobes into one SHRM). */
 export const SHRM_REPRESENTATIONS = ['irradiance', 'reflection_map', 'shrm_q0', 'shrm'];
 /** Representations drawn by a part of their own (scene_parts.js). */
-export const PART_REPRESENTATIONS = ['gaussian_lobes', 'diffuse_transfer'];
+export const PART_REPRESENTATIONS = ['gaussian_lobes', 'diffuse_transfer', 'inout_prt'];
 
 const json = (bytes) => JSON.parse(new TextDecoder().decode(bytes));
 
@@ -126,13 +126,26 @@ async function gaussianItem(pub, api, rep, base, loaders) {
   return { ...base, kind: 'gaussian_lobes', material, chain: loaders.chain(chain.summary, levels) };
 }
 
+async function inoutItem(pub, api, rep, base) {
+  const run = (pub.result?.jobs || []).find((j) => rep.jobs.includes(j.id) && j.kind === 'inout_transport');
+  const file = run?.executed && run.files.find((f) => f.endsWith('.inout.json'));
+  if (!file) {
+    throw new Error(`scene object ${base.name}: its in-out PRT has no inout_transport job run with a viewer form`);
+  }
+  const inout = json(await api.sceneFile(pub.id, file));
+  const [geometryBuffer, transportBuffer, factorsBuffer] = await Promise.all([inout.geometry.name,
+    inout.transport_texture.name, inout.factors_texture.name].map((name) => api.sceneFile(pub.id, name)));
+  return { ...base, kind: 'inout_prt', inout, geometryBuffer, transportBuffer, factorsBuffer };
+}
+
 /**
  * The 3-D view's items of a finished scene (ShrmViewer.setSceneObjects): per object, one item per way its lobes
  * are drawn, each with the object's centre, bounding radius and geometry (`loadShape(shape)`: 'sphere' or a
  * BufferGeometry in the unit ball): kind 'shrm' (the lobes of SHRM_REPRESENTATIONS: its SHRM texture and planned
  * viewer), 'gaussian_lobes' (each such lobe: its fit and the plan's chain, through `loaders.material` and
- * `loaders.chain`: gaussian_panel.js's materialFromLobes, gaussian.js's chainFromLevels) and 'diffuse_transfer'
- * (the object's {name}.prt.json, geometry and transfer texture). An object's items after its first are `added`.
+ * `loaders.chain`: gaussian_panel.js's materialFromLobes, gaussian.js's chainFromLevels), 'diffuse_transfer'
+ * (the object's {name}.prt.json, geometry and transfer texture) and 'inout_prt' (each such lobe: its
+ * inout_transport job's P.inout.json, geometry, transport and factors). An object's items after its first are `added`.
  * Returns {items, errors}: an object with a representation the viewer cannot draw, or whose files are missing, is
  * left out with its error ({name, message}); the others are drawn.
  */
@@ -166,8 +179,12 @@ export async function sceneItems(pub, api, loadShape, loaders) {
       if (kinds.includes('diffuse_transfer')) {
         parts.push(transferItem(pub, api, o, base));
       }
-      for (const rep of (o.representations || []).filter((r) => r.representation === 'gaussian_lobes')) {
-        parts.push(gaussianItem(pub, api, rep, base, loaders));
+      for (const rep of o.representations || []) {
+        if (rep.representation === 'gaussian_lobes') {
+          parts.push(gaussianItem(pub, api, rep, base, loaders));
+        } else if (rep.representation === 'inout_prt') {
+          parts.push(inoutItem(pub, api, rep, base));
+        }
       }
       return { items: (await Promise.all(parts)).map((it, k) => ({ ...it, added: k > 0 })) };
     } catch (err) {

@@ -7,11 +7,14 @@
 //    from the object's centre to the camera), the environment's rotation turning the normals.
 //  - PrtPart: the diffuse transfer of a Lambertian mesh with shadows (prt_object.js's PrtObject in its transfer
 //    mode: albedo T . L per vertex), placed at the object's centre and radius.
+//  - InOutPart: seed 004's in-out PRT of a glossy mesh with shadows (inout_object.js's InOutObject on the plan's
+//    shared inout_transport job: K terms, view and lighting dynamic), placed likewise.
 // An object whose lobes have several representations is several parts: the first opaque, the others added
 // (additive blending on the same geometry, drawn where the first part's depth is).
 import * as THREE from 'three';
 
 import { gaussianDefines, lobeTexels, packLobes } from './gaussian.js';
+import { InOutObject } from './inout_object.js';
 import { PrtObject } from './prt_object.js';
 import { build } from './shaders.js';
 import { latlongHalfTexture, objectViewDirection, withShaderAttributes } from './shrm_object.js';
@@ -187,6 +190,48 @@ export class PrtPart extends Part {
   }
 }
 
+export class InOutPart extends Part {
+  /**
+   * @param item {name, center, radius, shape, inout (the job's P.inout.json), geometryBuffer, transportBuffer,
+   *   factorsBuffer, added}
+   */
+  constructor(viewer, item) {
+    super(viewer, item);
+    this.representation = 'inout_prt';
+    this.inout = new InOutObject(viewer);
+    this.inout.read = viewer.read;
+    this.inout.setPlacement(item.center, item.radius);
+    this.inout.setMesh({ geometry: item.inout.geometry, bounds: item.inout.bounds,
+      bounding_radius: item.inout.bounding_radius }, item.geometryBuffer);
+    this.inout.setData(item.inout, { 'transport.bin': item.transportBuffer, 'factors.bin': item.factorsBuffer });
+    this.added = !!item.added;
+    this.mesh = this.inout.mesh;
+    this.mesh.name = item.name;
+    this.mesh.visible = true;
+    this.mesh.renderOrder = this.added ? 1 : 0;
+    this.updateMaterial();
+  }
+
+  material(output) {
+    const m = this.inout.material('inout', output);
+    return this.added ? additive(m) : m;
+  }
+
+  updateMaterial() {
+    this.mesh.material = this.material('display');
+  }
+
+  prepare(camera, rotation) {
+    this.inout.setPlacement(this.center.toArray(), this.radius);
+    this.inout.prepare(-rotation); // as PrtPart
+  }
+
+  dispose() {
+    this.inout.dispose();
+    this.mesh.removeFromParent();
+  }
+}
+
 /** The part of one scene item (sceneItems in scene.js): by its representation. */
 export function makePart(viewer, item) {
   if (item.kind === 'gaussian_lobes') {
@@ -194,6 +239,9 @@ export function makePart(viewer, item) {
   }
   if (item.kind === 'diffuse_transfer') {
     return new PrtPart(viewer, item);
+  }
+  if (item.kind === 'inout_prt') {
+    return new InOutPart(viewer, item);
   }
   throw new Error(`scene object ${item.name}: no part for representation ${item.kind}`);
 }

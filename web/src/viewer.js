@@ -23,7 +23,8 @@ import { TONEMAPS } from './tonemap.js';
 export { withShaderAttributes };
 
 const SHADER_FILES = ['fullscreen.vert.glsl', 'object.vert.glsl', 'object.frag.glsl', 'view_map.frag.glsl',
-  'background.frag.glsl', 'prt.vert.glsl', 'sh_table.frag.glsl', 'gaussian.vert.glsl', 'gaussian.frag.glsl'];
+  'background.frag.glsl', 'prt.vert.glsl', 'sh_table.frag.glsl', 'gaussian.vert.glsl', 'gaussian.frag.glsl',
+  'inout.vert.glsl'];
 const HALF_ONE = 0x3c00;
 const ORBIT_MIN_DISTANCE = 2.0; // the unit sphere's proxy box reaches sqrt(3)
 

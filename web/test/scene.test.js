@@ -18,6 +18,11 @@ function scene(objects) {
     'job01-gaussian_chain.level_01.bin': new Uint16Array(2 * 4 * 3).fill(9).buffer,
     'bunny.prt.json': enc({ geometry: { name: 'bunny.geometry.bin' }, files: { 'transfer.bin': { name: 'bunny.transfer.bin' } } }),
     'bunny.geometry.bin': new ArrayBuffer(4), 'bunny.transfer.bin': new ArrayBuffer(4),
+    'job02-inout_transport.inout.json': enc({ terms: 4, geometry: { name: 'job02-inout_transport.geometry.bin' },
+      transport_texture: { name: 'job02-inout_transport.transport.bin' },
+      factors_texture: { name: 'job02-inout_transport.factors.bin' } }),
+    'job02-inout_transport.geometry.bin': new ArrayBuffer(12), 'job02-inout_transport.transport.bin': new ArrayBuffer(16),
+    'job02-inout_transport.factors.bin': new ArrayBuffer(20),
   };
   const fileOf = { ball: { texture: 'ball.texture.json', coefficients_bin: 'ball.coefficients.bin' },
     bunny: { prt: 'bunny.prt.json', texture: 'ball.texture.json', coefficients_bin: 'ball.coefficients.bin' } };
@@ -27,7 +32,8 @@ function scene(objects) {
       distance: 4, view: [0, 0, 1] })) },
     plan: { objects: objects.map(([name, reps]) => ({ name, viewer: 'distant', representations: reps.map((r) => ({
       kind: r === 'diffuse_transfer' ? 'lambert' : 'phong', representation: r, seed: '000',
-      lobe: { kind: 'lambert', albedo: 0.5 }, jobs: r === 'gaussian_lobes' ? ['fit', 'chain'] : [] })) })) },
+      lobe: { kind: 'lambert', albedo: 0.5 },
+      jobs: { gaussian_lobes: ['fit', 'chain'], inout_prt: ['inout'] }[r] ?? [] })) })) },
     result: {
       objects: objects.map(([name, , own]) => ({ name, files: own ?? fileOf[name] ?? {} })),
       jobs: [
@@ -37,6 +43,9 @@ function scene(objects) {
           'job01-gaussian_chain.level_00.bin', 'job01-gaussian_chain.level_01.bin'],
         summary: { sigma0: 0.1, ratio: Math.SQRT2, levels: [{ file: 'level_00.bin', height: 2, width: 4 },
           { file: 'level_01.bin', height: 2, width: 4 }] } },
+        { id: 'inout', kind: 'inout_transport', executed: true, files: ['job02-inout_transport.npz',
+          'job02-inout_transport.inout.json', 'job02-inout_transport.geometry.bin',
+          'job02-inout_transport.transport.bin', 'job02-inout_transport.factors.bin'], summary: {} },
       ],
     },
   };
@@ -73,13 +82,23 @@ test('every representation is dispatched to its part, with the files it reads', 
   assert.ok(!s.fetched.includes('bunny.coefficients.bin')); // the transfer replaces the unshadowed SHRM
 });
 
+test('an in-out PRT lobe reads its inout_transport job\'s viewer files', async () => {
+  const s = scene([['teapot', ['inout_prt']]]);
+  const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
+  assert.deepEqual(errors, []);
+  assert.deepEqual(items.map((it) => [it.name, it.kind]), [['teapot', 'inout_prt']]);
+  assert.equal(items[0].inout.terms, 4);
+  assert.deepEqual([items[0].geometryBuffer, items[0].transportBuffer, items[0].factorsBuffer]
+    .map((b) => b.byteLength), [12, 16, 20]);
+});
+
 test('a representation the viewer cannot draw is that object\'s error; the others are drawn', async () => {
-  const s = scene([['ball', ['shrm']], ['floor', ['sh_table']], ['teapot', ['inout_prt']]]);
+  const s = scene([['ball', ['shrm']], ['floor', ['sh_table']], ['teapot', ['prt_matrix']]]);
   const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
   assert.deepEqual(items.map((it) => it.name), ['ball']);
   assert.deepEqual(errors.map((e) => e.name), ['floor', 'teapot']);
   assert.match(errors[0].message, /cannot draw representation sh_table/);
-  assert.match(errors[1].message, /cannot draw representation inout_prt/);
+  assert.match(errors[1].message, /cannot draw representation prt_matrix/);
 });
 
 test('missing files are the object\'s error; a plan without representations is one SHRM per object', async () => {
