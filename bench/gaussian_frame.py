@@ -6,7 +6,8 @@ One run, one GL context: the unit sphere and the ~100K-vertex bunny (``bunny-100
 level looked up at R (``plain``: one bilinear lookup per pixel in an RGBA16F 2-D texture, the baseline), K = 3
 Gaussian lobes (eq. 5: per lobe one lookup in the packed lobe texture and one trilinear lookup in the chain's 3-D
 texture, plus one lookup for the blue weights), and K = 3 with 16-coefficient SH visibility at the lobe centres
-(eq. 7, ``sh``) or convolved with the lobes (``sh-lobe``), all through ``web/shaders/gaussian*.glsl`` (``relight.gl.gaussian``). Milliseconds per frame (the
+(eq. 7, ``sh``) or convolved with the lobes (``sh-lobe``), all through ``web/shaders/gaussian*.glsl``
+(``relight.gl.gaussian``). Milliseconds per frame (the
 median of ``--repeats`` timed batches of ``--frames`` frames each, after a warm-up; the shaders take turns batch by
 batch, so a change of the shared machine's load hits them alike; the load average is in the JSON) and the ratio to
 ``plain`` of the same object (the issue's target: <= 3x for K = 3 + SH16). SwiftShader/llvmpipe absolute times
