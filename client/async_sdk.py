@@ -187,9 +187,10 @@ class AsyncRelightClient:
 
     async def ibl(self, envmap: str, *, target: str = "three", format: str = "ktx2", size: int = 256,
                   levels: int | None = None, epsilon: float = 2.5e-5, sun: str = "keep",
-                  pixel_format: str = "rgba16f", timeout: float | None = None) -> IblExport:
+                  pixel_format: str = "rgba16f", timeout: float | None = None,
+                  brdf: str | None = None) -> IblExport:
         """:meth:`RelightClient.ibl`."""
-        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun, pixel_format))
+        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun, pixel_format, brdf))
         answer = await self._do(call)
         while answer.data is None:
             await self.wait(answer.job_id, timeout=timeout)

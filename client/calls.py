@@ -116,11 +116,13 @@ def with_seconds(manifest: dict[str, Any], stages: dict[str, Any]) -> dict[str, 
 
 
 def ibl_params(target: str, format: str, size: int, levels: int | None, epsilon: float,
-               sun: str, pixel_format: str = "rgba16f") -> dict[str, Any]:
+               sun: str, pixel_format: str = "rgba16f", brdf: str | None = None) -> dict[str, Any]:
     params: dict[str, Any] = {"target": target, "format": format, "size": size, "epsilon": epsilon, "sun": sun,
                               "pixel_format": pixel_format}
     if levels is not None:
         params["levels"] = levels
+    if brdf is not None:
+        params["brdf"] = brdf
     return params
 
 

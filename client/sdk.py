@@ -197,10 +197,10 @@ class RelightClient:
 
     def ibl(self, envmap: str, *, target: str = "three", format: str = "ktx2", size: int = 256,
             levels: int | None = None, epsilon: float = 2.5e-5, sun: str = "keep", pixel_format: str = "rgba16f",
-            timeout: float | None = None) -> IblExport:
+            timeout: float | None = None, brdf: str | None = None) -> IblExport:
         """An engine export of an uploaded map (``GET /envmaps/{id}/ibl``, computed as a job and cached): waits for
-        the job, then returns the file and its manifest."""
-        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun, pixel_format))
+        the job, then returns the file and its manifest; ``brdf`` is ``relight export --brdf SPEC``."""
+        call = Calls.ibl(envmap, ibl_params(target, format, size, levels, epsilon, sun, pixel_format, brdf))
         answer = self._do(call)
         while answer.data is None:
             self.wait(answer.job_id, timeout=timeout)

@@ -26,7 +26,7 @@ from relight.contract.base import (
     Vector3,
     parse_view,
 )
-from relight.contract.engine import SUN_PATTERN, IblCreate
+from relight.contract.engine import SUN_PATTERN, DfgCreate, IblCreate
 from relight.contract.gaussian import (
     GaussianChainCreate,
     GaussianFitCreate,
@@ -86,6 +86,7 @@ __all__ = [
     "BrdfPublic",
     "BrdfRef",
     "CoreReport",
+    "DfgCreate",
     "Digest",
     "EnvmapList",
     "EnvmapPublic",

@@ -1,12 +1,16 @@
 """``relight bake``: engine outputs for a whole set of maps in one command (issue 17, item 7).
 
-    relight bake MAPS... --target three|filament|gltf|babylon [--format ktx2,sh,gltf] [--size 256] [--levels L]
-                 [--epsilon E] [--sun extract|clamp=V|keep] [--pixel-format F] --out DIR [-j N] [--server URL]
-                 [--json]
+    relight bake MAPS... [--brdf SPEC [--brdf SPEC...]] --target three|filament|gltf|babylon
+                 [--format ktx2,sh,gltf] [--size 256] [--levels L] [--epsilon E] [--sun extract|clamp=V|keep]
+                 [--pixel-format F] --out DIR [-j N] [--local | --server URL] [--json]
 
 Items: per map, ``ktx2`` writes ``DIR/<stem>.<target>.ktx2`` (+ ``.json``, ``relight export``'s files), ``gltf``
 ``DIR/<stem>.glb`` (+ ``.json``; ``relight export --format gltf``, ``--target gltf`` only, computed locally) and
-``sh`` writes ``DIR/<stem>.sh.json`` (every convention of ``relight.sh9``). One progress row per item (``done``,
+``sh`` writes ``DIR/<stem>.sh.json`` (every convention of ``relight.sh9``). Each ``--brdf SPEC`` is one material:
+the chain items (ktx2, gltf) are made once per map x material, named ``DIR/<stem>.<material>.<target>.ktx2`` and
+``DIR/<stem>.<material>.glb`` with ``<material>`` = :func:`material_tag` (the spec's safe characters and a hash);
+no ``--brdf`` is the target's split-sum GGX lobe, the names above. SH9 is the lighting's alone: one per map.
+One progress row per item (``done``,
 ``skipped`` or ``FAILED: <one-line error>``), then a summary; ``--json`` prints the rows as JSON instead.
 
 * **Content-addressed skip.** An item's key is the SHA-256 of the map file's bytes, the item's parameters and
@@ -83,13 +87,13 @@ def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict
 
     if fmt == "gltf" and opts["target"] != "gltf":
         raise InputError(f"gltf (EXT_lights_image_based) needs --target gltf, got {opts['target']!r}")
-    if fmt == "gltf" and opts.get("server"):
-        raise InputError("gltf items are computed locally only (the service exports ktx2 and sh)")
     pixel_format = opts.get("pixel_format", "rgba16f")
+    brdf = opts.get("brdf") if fmt != "sh" else None
     if opts.get("server"):
         return remote_exporter()(opts["server"], path, fmt=fmt, target=opts["target"], size=opts["size"],  # type: ignore[no-any-return]
                                  levels=opts["levels"], epsilon=opts["epsilon"], sun=opts["sun"],
-                                 pixel_format=pixel_format, api_key=opts.get("api_key"))
+                                 pixel_format=pixel_format, api_key=opts.get("api_key"),
+                                 **({"brdf": brdf} if brdf is not None else {}))
     from relight.engine_export import chain_export, gltf_export, sh_export
     from relight.envmap import read_envmap
 
@@ -97,10 +101,10 @@ def export_item(path: Path, fmt: str, opts: dict[str, Any]) -> tuple[bytes, dict
     source = {"path": str(path), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
     if fmt == "ktx2":
         files = chain_export(env.pixels, source, target=opts["target"], size=opts["size"], levels=opts["levels"],
-                             epsilon=opts["epsilon"], sun_spec=opts["sun"], pixel_format=pixel_format)
+                             epsilon=opts["epsilon"], sun_spec=opts["sun"], pixel_format=pixel_format, brdf=brdf)
     elif fmt == "gltf":
         files = gltf_export(env.pixels, source, size=opts["size"], levels=opts["levels"], epsilon=opts["epsilon"],
-                            sun_spec=opts["sun"])
+                            sun_spec=opts["sun"], brdf=brdf)
     else:
         files = sh_export(env.pixels, source, sun_spec=opts["sun"])
     return files.data, files.manifest
@@ -121,20 +125,36 @@ def _bake_item(path: Path, fmt: str, out: Path, opts: dict[str, Any], digest: st
         _write_atomic(out, text)
 
 
+def material_tag(spec: str) -> str:
+    """A file-name part for a ``--brdf`` spec: its characters outside ``[A-Za-z0-9.=-]`` as ``_`` (at most 40),
+    a dash and the first 8 hex digits of the spec's SHA-256 (two specs never share a name)."""
+    import re
+
+    safe = re.sub(r"[^A-Za-z0-9.=-]+", "_", spec.strip())[:40].strip("_.")
+    return f"{safe}-{hashlib.sha256(spec.strip().encode('utf-8')).hexdigest()[:8]}"
+
+
 def run_item(i: int, path_text: str, fmt: str, out_dir: str, opts: dict[str, Any]) -> dict[str, Any]:
-    """One item: skipped, done or failed (its one-line error); a top-level function so a process pool runs it."""
+    """One item: skipped, done or failed (its one-line error); a top-level function so a process pool runs it.
+    ``opts["brdf"]``: the item's material (a spec string, None for the target's lobe; ignored by ``sh``)."""
     path = Path(path_text)
     stem = path.name.split(".")[0]
-    name = {"ktx2": f"{stem}.{opts['target']}.ktx2", "gltf": f"{stem}.glb", "sh": f"{stem}.sh.json"}[fmt]
+    brdf = opts.get("brdf") if fmt != "sh" else None
+    mat = "" if brdf is None else f".{material_tag(brdf)}"
+    name = {"ktx2": f"{stem}{mat}.{opts['target']}.ktx2", "gltf": f"{stem}{mat}.glb", "sh": f"{stem}.sh.json"}[fmt]
     out = Path(out_dir) / name
     manifest = out if fmt == "sh" else out.with_name(out.name + ".json")
     row: dict[str, Any] = {"item": i, "map": path_text, "format": fmt, "out": str(out)}
+    if brdf is not None:
+        row["brdf"] = brdf
     t0 = time.perf_counter()
     try:
         params = ({k: opts[k] for k in ("target", "size", "levels", "epsilon", "sun")} if fmt != "sh"
                   else {"sun": opts["sun"]})
         if fmt == "ktx2" and opts.get("pixel_format", "rgba16f") != "rgba16f":  # absent: earlier keys stay valid
             params["pixel_format"] = opts["pixel_format"]
+        if brdf is not None:
+            params["brdf"] = brdf.strip()
         digest = _file_digest(path)
         key = _key(digest, fmt, params)
         if _done(manifest, key, [out, manifest]):
@@ -164,28 +184,37 @@ def cmd_bake(args: argparse.Namespace) -> int:
     parse_sun(args.sun)
     if args.server:
         remote_exporter()  # a missing client is an argument error, before any item runs
+    materials: list[str | None] = list(dict.fromkeys(b.strip() for b in args.brdf)) if args.brdf else [None]
+    for spec in materials:  # a bad spec is an argument error too
+        if spec is not None:
+            from relight.brdf.normal_view import ChainBrdf
+
+            ChainBrdf(spec)
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
-    opts = {"target": args.target, "size": args.size, "levels": args.levels, "epsilon": args.epsilon,
+    base = {"target": args.target, "size": args.size, "levels": args.levels, "epsilon": args.epsilon,
             "sun": args.sun, "server": args.server, "api_key": args.api_key, "pixel_format": args.pixel_format}
-    items = [(m, fmt) for m in args.maps for fmt in formats]
+    # one item per map x format x material; sh depends on the map alone (one per map)
+    items = [(m, fmt, {**base, "brdf": b}) for m in args.maps for fmt in formats
+             for b in (materials if fmt != "sh" else [None])]
     rows: list[dict[str, Any]] = []
 
     def report(row: dict[str, Any]) -> None:
         rows.append(row)
         if not args.json:
             status = row["status"] if row["status"] != "failed" else f"FAILED: {row['error']}"
-            print(f"[{row['item']}/{len(items)}] {Path(row['map']).name} {row['format']}: {status} "
+            what = row["format"] if "brdf" not in row else f"{row['format']} --brdf {row['brdf']}"
+            print(f"[{row['item']}/{len(items)}] {Path(row['map']).name} {what}: {status} "
                   f"({row['seconds']:.2f} s)", flush=True)
 
     if args.jobs == 1:
-        for i, (m, fmt) in enumerate(items, 1):
+        for i, (m, fmt, opts) in enumerate(items, 1):
             report(run_item(i, m, fmt, str(out_dir), opts))
     else:
         pool: Executor = ThreadPoolExecutor(args.jobs) if args.server else ProcessPoolExecutor(args.jobs)
         try:
             futures: list[Future[dict[str, Any]]] = [pool.submit(run_item, i, m, fmt, str(out_dir), opts)
-                                                     for i, (m, fmt) in enumerate(items, 1)]
+                                                     for i, (m, fmt, opts) in enumerate(items, 1)]
             for fut in as_completed(futures):
                 report(fut.result())
         except BaseException:
@@ -208,7 +237,9 @@ def register(sub: Any) -> None:
     bp = sub.add_parser("bake", help="engine outputs (KTX2 chains, SH9) for many maps, resumable")
     bp.add_argument("maps", nargs="+")
     bp.add_argument("--target", required=True, choices=["three", "filament", "gltf", "babylon"])
-    bp.add_argument("--format", default="ktx2,sh", help="comma list of ktx2, sh, gltf (gltf: --target gltf, local)")
+    bp.add_argument("--format", default="ktx2,sh", help="comma list of ktx2, sh, gltf (gltf: --target gltf)")
+    bp.add_argument("--brdf", action="append", default=None, metavar="SPEC", help="a material (repeatable): its "
+                    "lobe at view = normal per level (relight export --brdf); one chain per map x material")
     bp.add_argument("--size", type=int, default=256)
     bp.add_argument("--levels", type=int, default=None)
     bp.add_argument("--epsilon", type=float, default=2.5e-5)

@@ -1,7 +1,7 @@
 """Engine export commands of the ``relight`` CLI (engine-ready outputs issue, item 1).
 
     relight export ENVMAP --target three|filament|gltf|babylon --format ktx2 [--size 256] [--levels L]
-                   [--pixel-format rgba16f|b10g11r11|e5b9g9r9]
+                   [--brdf SPEC] [--pixel-format rgba16f|b10g11r11|e5b9g9r9]
                    [--epsilon E] [--sun extract|clamp=V|keep] --out FILE.ktx2 [--server URL] [--json]
         the target engine's prefiltered GGX cube chain (``relight.cube_chain``): one mip per roughness in the
         engine's own lod mapping, RGBA16F, OpenGL face order; FILE.ktx2 carries the per-level table under the
@@ -12,6 +12,9 @@
         light (direction, RGB irradiance, illuminance, angular radius) under ``sun``; ``clamp=V`` limits every
         pixel's luminance to V and records the removed energy fraction; ``keep`` (default) does neither.
         ``--server URL`` computes it on the service (``GET /envmaps/{id}/ibl``): the same KTX2 bytes.
+        ``--brdf SPEC`` (``relight.brdf.normal_view``, docs/conventions.md "Chains of other lobes"): each level
+        holds that BRDF's lobe at view = normal instead of the engine's split-sum GGX lobe; a ``ggx-ld`` or
+        ``gltf-pbr`` term without ``roughness`` takes the level's roughness, every other parameter is kept.
         ``--format gltf [--into MODEL.glb]`` (``--target gltf``): a GLB with the chain as EXT_lights_image_based
         (RGBD PNG faces, SH9 irradiance) and KHR_lights_environment (the chain as one KTX2 via KHR_texture_ktx,
         SH9), and an extracted sun as a KHR_lights_punctual light (``relight.gltf_ibl``).
@@ -56,13 +59,13 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 def export_chain(pixels: Any, source: dict[str, Any], out: Path, *, target: str, size: int, levels: int | None,
                  epsilon: float, sun_spec: str, pixel_format: str = "rgba16f",
-                 extra: dict[str, Any] | None = None) -> dict[str, Any]:
+                 extra: dict[str, Any] | None = None, brdf: str | None = None) -> dict[str, Any]:
     """The chain, SH9 and sun step of one map (``relight.engine_export.chain_export``) written to ``out``
     (+ ``out.json``) atomically; the manifest."""
     from relight.engine_export import chain_export
 
     files = chain_export(pixels, source, target=target, size=size, levels=levels, epsilon=epsilon,
-                         sun_spec=sun_spec, pixel_format=pixel_format, extra=extra)
+                         sun_spec=sun_spec, pixel_format=pixel_format, extra=extra, brdf=brdf)
     _write_atomic(out, files.data)
     _write_atomic(out.with_name(out.name + ".json"), json.dumps(files.manifest, indent=2).encode("utf-8"))
     return files.manifest
@@ -77,6 +80,10 @@ def cmd_export(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise InputError(f"the folder of --out does not exist: {out.parent}")
     parse_sun(args.sun)
+    if args.brdf is not None:  # every spec error now, before the map is read or the service asked
+        from relight.brdf.normal_view import ChainBrdf
+
+        ChainBrdf(args.brdf)
     if args.format == "gltf":
         return _export_gltf(args, out)
     if args.into:
@@ -86,7 +93,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
         data, manifest = remote_exporter()(args.server, Path(args.envmap), fmt="ktx2", target=args.target,
                                            size=args.size, levels=args.levels, epsilon=args.epsilon, sun=args.sun,
-                                           pixel_format=args.pixel_format, api_key=args.api_key)
+                                           pixel_format=args.pixel_format, api_key=args.api_key,
+                                           **({"brdf": args.brdf} if args.brdf is not None else {}))
         _write_atomic(out, data)
         _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
     else:
@@ -94,12 +102,14 @@ def cmd_export(args: argparse.Namespace) -> int:
         source = {"path": str(args.envmap), "height": int(env.pixels.shape[0]),
                   "width": int(env.pixels.shape[1])}
         manifest = export_chain(env.pixels, source, out, target=args.target, size=args.size, levels=args.levels,
-                                epsilon=args.epsilon, sun_spec=args.sun, pixel_format=args.pixel_format)
+                                epsilon=args.epsilon, sun_spec=args.sun, pixel_format=args.pixel_format,
+                                brdf=args.brdf)
     table = manifest["levels"]
     if args.json:
         print(json.dumps(manifest, indent=2))
         return 0
-    print(f"{out}: {manifest['target']} GGX chain, {len(table)} levels from {args.size}^2 faces, "
+    lobe = f"--brdf {args.brdf}" if args.brdf is not None else "GGX"
+    print(f"{out}: {manifest['target']} {lobe} chain, {len(table)} levels from {args.size}^2 faces, "
           f"{manifest['seconds']['total']:.2f} s")
     print(" level  size  roughness  method  order  predicted  bound     seconds")
     for row in table:
@@ -118,8 +128,19 @@ def _export_gltf(args: argparse.Namespace, out: Path) -> int:
     if args.target != "gltf":
         raise InputError(f"--format gltf writes EXT_lights_image_based, whose mips map linearly to roughness: use "
                          f"--target gltf (got {args.target!r})")
-    if args.server:
-        raise InputError("--format gltf is computed locally only (the service exports ktx2 and sh)")
+    if args.server:  # GET /envmaps/{id}/ibl?format=gltf: the same GLB
+        if args.into:
+            raise InputError("--into is local only (the service writes the lighting alone): drop --server")
+        from relight.cli_bake import remote_exporter
+
+        data, manifest = remote_exporter()(args.server, Path(args.envmap), fmt="gltf", target="gltf",
+                                           size=args.size, levels=args.levels, epsilon=args.epsilon, sun=args.sun,
+                                           api_key=args.api_key,
+                                           **({"brdf": args.brdf} if args.brdf is not None else {}))
+        _write_atomic(out, data)
+        _write_atomic(out.with_name(out.name + ".json"), json.dumps(manifest, indent=2).encode("utf-8"))
+        print(json.dumps(manifest, indent=2) if args.json else f"{out}: EXT_lights_image_based from {args.server}")
+        return 0
     into = None
     if args.into:
         into_path = Path(args.into)
@@ -129,7 +150,8 @@ def _export_gltf(args: argparse.Namespace, out: Path) -> int:
     env = read_envmap(args.envmap)
     source = {"path": str(args.envmap), "height": int(env.pixels.shape[0]), "width": int(env.pixels.shape[1])}
     files = gltf_export(env.pixels, source, size=args.size, levels=args.levels, epsilon=args.epsilon,
-                        sun_spec=args.sun, into=into, extra={"into": args.into} if args.into else None)
+                        sun_spec=args.sun, into=into, extra={"into": args.into} if args.into else None,
+                        brdf=args.brdf)
     _write_atomic(out, files.data)
     _write_atomic(out.with_name(out.name + ".json"), json.dumps(files.manifest, indent=2).encode("utf-8"))
     g = files.manifest["gltf"]
@@ -160,9 +182,7 @@ def cmd_sh(args: argparse.Namespace) -> int:
 
 
 def cmd_dfg(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from relight.dfg import dfg_table
+    from relight.dfg import dfg_file
     from relight.errors import InputError
 
     out = Path(args.out)
@@ -171,31 +191,7 @@ def cmd_dfg(args: argparse.Namespace) -> int:
     suffix = out.suffix.lower()
     if suffix not in (".exr", ".png", ".ktx2"):
         raise InputError(f"--out must end in .exr, .png or .ktx2, got {out.name!r}")
-    table = dfg_table(args.size, multiscatter=args.multiscatter)
-    rgb = np.concatenate([table, np.zeros(table.shape[:2] + (1,))], axis=-1)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=suffix)
-    os.close(fd)
-    try:
-        if suffix == ".exr":
-            from relight.envmap.exr import write_exr
-
-            write_exr(tmp, rgb.astype(np.float32))
-        elif suffix == ".ktx2":
-            from relight import __version__
-            from relight.ktx2 import write_ktx2
-
-            layout = "(B, A + B)" if args.multiscatter else "(A, B)"
-            meta = {"dfg": {"channels": layout, "rows": "r = (i + 0.5) / N", "columns": "NoV = (j + 0.5) / N",
-                            "size": args.size}}
-            Path(tmp).write_bytes(write_ktx2([rgb[None]], meta, writer=f"relight {__version__}"))
-        else:
-            import imagecodecs  # 16-bit PNG (libpng), as relight.envmap.ldr reads them
-
-            Path(tmp).write_bytes(imagecodecs.png_encode(np.round(np.clip(rgb, 0.0, 1.0) * 65535).astype(np.uint16)))
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    _write_atomic(out, dfg_file(args.size, multiscatter=args.multiscatter, fmt=suffix[1:]))
     print(f"{out}: {args.size} x {args.size} DFG table ({'multiscatter' if args.multiscatter else 'A, B'})")
     return 0
 
@@ -212,6 +208,9 @@ def register(sub: Any) -> None:
     ex.add_argument("--into", default=None, help="--format gltf: add the lighting to this GLB model")
     ex.add_argument("--size", type=int, default=256, help="face size of level 0 (a power of two)")
     ex.add_argument("--levels", type=int, default=None, help="mip levels (default: down to 1 x 1)")
+    ex.add_argument("--brdf", default=None, metavar="SPEC", help="another lobe family per level: the BRDF's lobe at "
+                    "view = normal (e.g. gltf-pbr:base=0.9/0.6/0.2,metallic=1; a ggx-ld or gltf-pbr term without "
+                    "roughness takes each level's); default the target's split-sum GGX lobe")
     ex.add_argument("--epsilon", type=float, default=2.5e-5,
                     help="uncaptured lobe energy per level (seed 000 §5.1); the default predicts 0.5 %% RMS")
     ex.add_argument("--sun", default="keep", help="extract (a directional light + the residual), clamp=V (pixel "

@@ -26,6 +26,10 @@ computed exactly where it is cheap and exact:
 
 :func:`relight.cap_convolution.brute_force` is the plain dense sum over every pixel that tests compare all three
 against; the near part's pixel sum is :func:`relight.cap_convolution.angular_convolution`.
+
+``brdf`` (``--brdf SPEC``) replaces the split-sum lobe by another family's lobe at view = normal
+(:mod:`relight.brdf.normal_view`): each level is then a mirror weight times the sampled map plus one lobe per lobe
+of the spec, each planned as above on its own, and an RGB lobe one channel at a time.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ from numpy.typing import NDArray
 from relight import indexing, sh, validate
 from relight.brdf.base import RadialLobe
 from relight.brdf.coefficients import radial_transfer, spectrum_for_tolerance
+from relight.brdf.normal_view import ChainBrdf, ChannelLobe
 from relight.brdf.splitsum import MIN_ROUGHNESS, GGXSplitSum
 from relight.cap_convolution import WindowedLobe, angular_convolution
 from relight.conventions import (
@@ -128,6 +133,7 @@ class CubeChain:
     lighting_order: int
     levels: list[ChainLevel]
     seconds: dict[str, float]
+    brdf: str | None = None  # the --brdf spec, None for the engine's split-sum GGX lobe
 
     def summary(self) -> list[dict[str, float | int | str | None]]:
         return [{"level": lv.level, "size": lv.size, "roughness": lv.roughness, "method": lv.method,
@@ -137,21 +143,53 @@ class CubeChain:
 
 @dataclass(frozen=True)
 class _LevelPlan:
-    """How one level is computed: its SH lobe (the whole lobe or the far part) at ``order`` and ``epsilon``, the
-    near part summed over pixels up to ``theta1``, and the SH part's share of the lobe's energy."""
+    """How one level (or one colour channel of it) is computed: its SH lobe (the whole lobe or the far part) at
+    ``order`` and ``epsilon``, the near part summed over pixels up to ``theta1``, and the SH part's share of the
+    lobe's energy; ``channel`` is the output channel of an RGB kernel's pass (None: all three, a grey kernel)."""
 
-    roughness: float
     near_lobe: RadialLobe | None
     sh_lobe: RadialLobe | None
     theta1: float
     order: int
     epsilon: float
     share: float
+    channel: int | None = None
+
+
+def _plan(lobe: RadialLobe, epsilon: float, h: int, channel: int | None) -> _LevelPlan:
+    """The whole lobe in SH when the map resolves it, else its near (angular) and far (SH) parts."""
+    f_cap = h - 1
+    full_spec, f_rho = spectrum_for_tolerance(lobe, epsilon, lmax_cap=f_cap + 1)
+    if f_rho <= f_cap // SPLIT_FRACTION:
+        return _LevelPlan(None, lobe, 0.0, f_rho, epsilon, 1.0, channel)
+    e_full = float(np.max(full_spec.total_energy))
+    theta1 = NEAR_PIXELS * math.pi / h
+    while True:
+        far = WindowedLobe(lobe, 0.5 * theta1, theta1, near=False)
+        share = min(1.0, float(np.max(radial_transfer(far, 64).total_energy)) / e_full)
+        eps_far = min(epsilon / share, FAR_EPSILON_CAP)
+        _, f_far = spectrum_for_tolerance(far, eps_far, lmax_cap=f_cap + 1)
+        if f_far <= f_cap // FAR_FRACTION or theta1 >= math.pi / 2:
+            break
+        theta1 *= 2.0
+    near = WindowedLobe(lobe, 0.5 * theta1, theta1, near=True)
+    return _LevelPlan(near, far, theta1, min(f_far, f_cap), eps_far, share, channel)
+
+
+def _kernels(rough: FloatArray, brdf: str | None) -> list[tuple[FloatArray, list[RadialLobe]]]:
+    """Per level: the RGB weight of the map itself (the mirror) and the continuous lobes."""
+    if brdf is None:  # the engine's split-sum GGX lobe
+        return [(np.ones(3), []) if r < MIN_ROUGHNESS else (np.zeros(3), [GGXSplitSum(float(r),
+                max_roughness=MAX_ROUGHNESS)]) for r in rough]
+    family = ChainBrdf(brdf, max_roughness=MAX_ROUGHNESS)
+    return [(k.mirror, k.lobes) for k in (family.kernel(float(r)) for r in rough)]
 
 
 def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size: int = 256,
-                    levels: int | None = None, epsilon: float = DEFAULT_EPSILON) -> CubeChain:
-    """The engine's prefiltered GGX chain of a lat-long map (H, W, 3): face ``size`` at level 0, halving."""
+                    levels: int | None = None, epsilon: float = DEFAULT_EPSILON,
+                    brdf: str | None = None) -> CubeChain:
+    """The engine's prefiltered GGX chain of a lat-long map (H, W, 3): face ``size`` at level 0, halving;
+    ``brdf`` (a spec string) another lobe family per level (``relight.brdf.normal_view``)."""
     if target not in TARGET_MAPPING:
         raise InputError(f"unknown target {target!r}; use one of {', '.join(TARGET_MAPPING)}")
     if not (isinstance(size, int) and 1 <= size <= MAX_FACE_SIZE and size & (size - 1) == 0):
@@ -169,67 +207,63 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
 
-    # Per level: the lobe, or its near (angular) and far (SH) parts when the map cannot resolve it in SH.
-    plans: list[_LevelPlan] = []
-    for r in rough:
-        if r < MIN_ROUGHNESS:
-            plans.append(_LevelPlan(float(r), None, None, 0.0, 0, epsilon, 1.0))
-            continue
-        full_lobe = GGXSplitSum(float(r), max_roughness=MAX_ROUGHNESS)
-        full_spec, f_rho = spectrum_for_tolerance(full_lobe, epsilon, lmax_cap=f_cap + 1)
-        if f_rho <= f_cap // SPLIT_FRACTION:
-            plans.append(_LevelPlan(float(r), None, full_lobe, 0.0, f_rho, epsilon, 1.0))
-            continue
-        e_full = float(np.max(full_spec.total_energy))
-        theta1 = NEAR_PIXELS * math.pi / h
-        while True:
-            far = WindowedLobe(full_lobe, 0.5 * theta1, theta1, near=False)
-            share = min(1.0, float(np.max(radial_transfer(far, 64).total_energy)) / e_full)
-            eps_far = min(epsilon / share, FAR_EPSILON_CAP)
-            _, f_far = spectrum_for_tolerance(far, eps_far, lmax_cap=f_cap + 1)
-            if f_far <= f_cap // FAR_FRACTION or theta1 >= math.pi / 2:
-                break
-            theta1 *= 2.0
-        near = WindowedLobe(full_lobe, 0.5 * theta1, theta1, near=True)
-        plans.append(_LevelPlan(float(r), near, far, theta1, min(f_far, f_cap), eps_far, share))
+    # Per level: the mirror weight, and per lobe the lobe (or its near and far parts), one pass per channel of an
+    # RGB lobe.
+    kernels = _kernels(rough, brdf)
+    plans: list[list[_LevelPlan]] = []
+    for _, lobes in kernels:
+        plans.append([])
+        for lobe in lobes:
+            if lobe.channels == 1:
+                plans[-1].append(_plan(lobe, epsilon, h, None))
+            else:
+                plans[-1].extend(_plan(ChannelLobe(lobe, c), epsilon, h, c) for c in range(lobe.channels))
     timings["orders"] = time.perf_counter() - t0
 
-    f_light = max((p.order for p in plans if p.sh_lobe is not None), default=0)
+    f_light = max((p.order for ps in plans for p in ps if p.sh_lobe is not None), default=0)
     t1 = time.perf_counter()
     lighting = project_lighting(pixels, f_light) if f_light > 0 else None
     timings["lighting_projection"] = time.perf_counter() - t1
 
     out: list[ChainLevel] = []
-    for i, p in enumerate(plans):
+    for i, (r, (mirror, _), passes) in enumerate(zip(rough, kernels, plans, strict=True)):
         t = time.perf_counter()
         s = size >> i
         dirs = cube_face_dirs(s).reshape(-1, 3)
         faces = np.zeros((dirs.shape[0], 3))
         order: int | None = None
-        rms = bound = 0.0
+        rms = bound = theta1 = 0.0
         method: Method = "sample"
-        if p.near_lobe is None and p.sh_lobe is None:
-            faces = sample_latlong(np.asarray(pixels, dtype=np.float64)[None], dirs)[:, 0]
-        if p.sh_lobe is not None and lighting is not None:
-            spectrum = radial_transfer(p.sh_lobe, p.order)
-            choice = choose_orders(spectrum, lighting, p.epsilon, None, p.order, f_cap, spectrum.transfer)
-            order = choice.F_B
-            l_idx, _ = indexing.healpy_lm(order)
-            b_lm = sh.truncate(lighting.alm, lighting.lmax, order) * spectrum.transfer[: order + 1, 0][l_idx][None, :]
-            theta, phi = dirs_to_angles(dirs)
-            faces = faces + sh.evaluate(b_lm, order, theta, phi)
-            # The prediction of the SH part scaled by its share of the lobe's energy (exact for white lighting);
-            # App. B relative to the SH part's output, which is at most the whole output: conservative.
-            rms = math.sqrt(max(choice.eps_min_of_errors, 0.0) * p.share)
-            bound = math.sqrt(max(choice.eps_appendix_b, 0.0))
-            method = "sh"
-        if p.near_lobe is not None:
-            faces = faces + angular_convolution(pixels, p.near_lobe, dirs, p.theta1)
-            method = "split"
-        out.append(ChainLevel(level=i, size=s, roughness=p.roughness, method=method, order=order,
+        if np.any(mirror != 0.0):
+            sampled = sample_latlong(np.asarray(pixels, dtype=np.float64)[None], dirs)[:, 0]
+            faces = sampled if np.all(mirror == 1.0) else faces + mirror[None, :] * sampled
+        for p in passes:
+            part = np.zeros_like(faces)
+            if p.sh_lobe is not None and lighting is not None:
+                spectrum = radial_transfer(p.sh_lobe, p.order)
+                choice = choose_orders(spectrum, lighting, p.epsilon, None, p.order, f_cap, spectrum.transfer)
+                order = max(order or 0, choice.F_B)
+                l_idx, _ = indexing.healpy_lm(choice.F_B)
+                b_lm = (sh.truncate(lighting.alm, lighting.lmax, choice.F_B)
+                        * spectrum.transfer[: choice.F_B + 1, 0][l_idx][None, :])
+                theta, phi = dirs_to_angles(dirs)
+                part = part + sh.evaluate(b_lm, choice.F_B, theta, phi)
+                # The prediction of the SH part scaled by its share of the lobe's energy (exact for white
+                # lighting); App. B relative to the SH part's output, which is at most the whole output.
+                rms = max(rms, math.sqrt(max(choice.eps_min_of_errors, 0.0) * p.share))
+                bound = max(bound, math.sqrt(max(choice.eps_appendix_b, 0.0)))
+                method = "sh" if method == "sample" else method
+            if p.near_lobe is not None:
+                part = part + angular_convolution(pixels, p.near_lobe, dirs, p.theta1)
+                method, theta1 = "split", max(theta1, p.theta1)
+            if p.channel is None:
+                faces = faces + part
+            else:
+                faces[:, p.channel] += part[:, p.channel]
+        out.append(ChainLevel(level=i, size=s, roughness=float(r), method=method, order=order,
                               predicted_rms=rms, bound_rms=bound, seconds=time.perf_counter() - t,
-                              near_angle=p.theta1, faces=np.asarray(faces, dtype=np.float32).reshape(6, s, s, 3)))
+                              near_angle=theta1, faces=np.asarray(faces, dtype=np.float32).reshape(6, s, s, 3)))
     timings["levels"] = sum(lv.seconds for lv in out)
     timings["total"] = time.perf_counter() - t0
     return CubeChain(target=target, mapping=mapping, epsilon=epsilon, lighting_order=f_light, levels=out,
-                     seconds=timings)
+                     seconds=timings, brdf=brdf)

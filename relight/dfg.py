@@ -101,3 +101,42 @@ def dfg_table(size: int = 128, *, multiscatter: bool = False) -> FloatArray:
     if multiscatter:
         out = np.stack([out[..., 1], out[..., 0] + out[..., 1]], axis=-1)
     return out
+
+
+#: File formats of :func:`dfg_file` (``relight dfg --out FILE.<format>``, ``GET /dfg?format=``).
+DFG_FORMATS = ("exr", "png", "ktx2")
+
+
+def dfg_file(size: int = 128, *, multiscatter: bool = False, fmt: str = "exr") -> bytes:
+    """The table as a file's bytes (what ``relight dfg`` writes and ``GET /dfg`` serves): R, G = the table, B = 0;
+    ``exr`` float32, ``png`` 16-bit linear (values x 65535), ``ktx2`` a 2-D RGBA16F (B 0, A 1) with the layout
+    under ``relight.dfg`` (docs/conventions.md "DFG")."""
+    import os
+    import tempfile
+
+    if fmt not in DFG_FORMATS:
+        raise InputError(f"DFG format must be one of {', '.join(DFG_FORMATS)}, got {fmt!r}")
+    table = dfg_table(size, multiscatter=multiscatter)
+    rgb = np.concatenate([table, np.zeros(table.shape[:2] + (1,))], axis=-1)
+    if fmt == "ktx2":
+        from relight import __version__
+        from relight.ktx2 import write_ktx2
+
+        layout = "(B, A + B)" if multiscatter else "(A, B)"
+        meta = {"dfg": {"channels": layout, "rows": "r = (i + 0.5) / N", "columns": "NoV = (j + 0.5) / N",
+                        "size": size}}
+        return write_ktx2([rgb[None]], meta, writer=f"relight {__version__}")
+    if fmt == "png":
+        import imagecodecs  # 16-bit PNG (libpng), as relight.envmap.ldr reads them
+
+        return bytes(imagecodecs.png_encode(np.round(np.clip(rgb, 0.0, 1.0) * 65535).astype(np.uint16)))
+    from relight.envmap.exr import write_exr
+
+    fd, tmp = tempfile.mkstemp(suffix=".exr")
+    os.close(fd)
+    try:
+        write_exr(tmp, rgb.astype(np.float32))
+        with open(tmp, "rb") as fh:
+            return fh.read()
+    finally:
+        os.unlink(tmp)

@@ -38,9 +38,10 @@ class ExportFiles:
 
 def chain_export(pixels: NDArray[np.floating], source: dict[str, Any], *, target: str, size: int,
                  levels: int | None, epsilon: float, sun_spec: str, pixel_format: str = "rgba16f",
-                 extra: dict[str, Any] | None = None) -> ExportFiles:
+                 extra: dict[str, Any] | None = None, brdf: str | None = None) -> ExportFiles:
     """The KTX2 chain of a lat-long map (H, W, 3) and its manifest (module docstring); ``pixel_format`` one of
-    ``relight.ktx2.PIXEL_FORMATS`` (rgba16f, b10g11r11, e5b9g9r9)."""
+    ``relight.ktx2.PIXEL_FORMATS`` (rgba16f, b10g11r11, e5b9g9r9); ``brdf`` a spec string whose lobe at view =
+    normal each level holds instead of the target's split-sum GGX lobe (``relight.brdf.normal_view``)."""
     from relight.errors import InputError
     from relight.ktx2 import PIXEL_FORMATS
 
@@ -53,27 +54,35 @@ def chain_export(pixels: NDArray[np.floating], source: dict[str, Any], *, target
     from relight.sun import apply_sun
 
     sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
-    chain = prefilter_chain(sun.pixels, target=target, size=size, levels=levels, epsilon=epsilon)
+    chain = prefilter_chain(sun.pixels, target=target, size=size, levels=levels, epsilon=epsilon, brdf=brdf)
     table = chain.summary()
     manifest: dict[str, Any] = {
         "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
         "lighting_order": chain.lighting_order, "face_order": ["+X", "-X", "+Y", "-Y", "+Z", "-Z"],
         "source": source, "size": size, "levels": table, "seconds": chain.seconds, "relight_version": __version__,
-        "sh9": all_conventions(sun.pixels), "sun": sun.report, **(extra or {}),
+        "sh9": all_conventions(sun.pixels), "sun": sun.report, **_brdf_key(chain), **(extra or {}),
     }
     if pixel_format != "rgba16f":  # absent for the default, so earlier manifests and files stay the same
         manifest["pixel_format"] = pixel_format
-    data = write_ktx2([lv.faces for lv in chain.levels],
-                      {"levels": [{k: v for k, v in row.items() if k != "seconds"} for row in table],
-                       "target": chain.target, "roughness_mapping": chain.mapping, "sh9": manifest["sh9"],
-                       "sun": sun.report},
+    data = write_ktx2([lv.faces for lv in chain.levels], _ktx2_meta(chain, manifest["sh9"], sun.report),
                       writer=f"relight {__version__}", vk_format=PIXEL_FORMATS[pixel_format])
     return ExportFiles(data, manifest)
 
 
+def _brdf_key(chain: Any) -> dict[str, Any]:
+    """``{"brdf": spec}`` for a ``--brdf`` chain, nothing for the default lobe (earlier files stay the same)."""
+    return {} if chain.brdf is None else {"brdf": chain.brdf}
+
+
+def _ktx2_meta(chain: Any, sh9: dict[str, Any], sun: dict[str, Any] | None) -> dict[str, Any]:
+    """The KTX2's deterministic metadata: the level table without seconds, target, mapping, SH9, sun, brdf."""
+    return {"levels": [{k: v for k, v in row.items() if k != "seconds"} for row in chain.summary()],
+            "target": chain.target, "roughness_mapping": chain.mapping, "sh9": sh9, "sun": sun, **_brdf_key(chain)}
+
+
 def gltf_export(pixels: NDArray[np.floating], source: dict[str, Any], *, size: int, levels: int | None,
                 epsilon: float, sun_spec: str, into: bytes | None = None,
-                extra: dict[str, Any] | None = None) -> ExportFiles:
+                extra: dict[str, Any] | None = None, brdf: str | None = None) -> ExportFiles:
     """The ``gltf`` target's chain, its SH9 and the sun as a GLB (``relight.gltf_ibl``), alone or added to ``into``."""
     from relight import __version__
     from relight.cube_chain import prefilter_chain
@@ -83,11 +92,9 @@ def gltf_export(pixels: NDArray[np.floating], source: dict[str, Any], *, size: i
     from relight.sun import apply_sun
 
     sun = apply_sun(np.asarray(pixels, dtype=np.float64), sun_spec)
-    chain = prefilter_chain(sun.pixels, target="gltf", size=size, levels=levels, epsilon=epsilon)
+    chain = prefilter_chain(sun.pixels, target="gltf", size=size, levels=levels, epsilon=epsilon, brdf=brdf)
     sh = all_conventions(sun.pixels)
-    ktx2 = write_ktx2([lv.faces for lv in chain.levels],
-                      {"levels": [{k: v for k, v in row.items() if k != "seconds"} for row in chain.summary()],
-                       "target": chain.target, "roughness_mapping": chain.mapping, "sh9": sh, "sun": sun.report},
+    ktx2 = write_ktx2([lv.faces for lv in chain.levels], _ktx2_meta(chain, sh, sun.report),
                       writer=f"relight {__version__}")
     data, summary = gltf_lighting([lv.faces for lv in chain.levels], sh["gltf"]["coefficients"], sun.report,
                                   into=into, ktx2=ktx2, generator=f"relight {__version__}")
@@ -95,7 +102,7 @@ def gltf_export(pixels: NDArray[np.floating], source: dict[str, Any], *, size: i
         "format": "gltf", "target": chain.target, "roughness_mapping": chain.mapping, "epsilon": chain.epsilon,
         "lighting_order": chain.lighting_order, "source": source, "size": size, "levels": chain.summary(),
         "seconds": chain.seconds, "relight_version": __version__, "sh9": sh, "sun": sun.report, "gltf": summary,
-        **(extra or {}),
+        **_brdf_key(chain), **(extra or {}),
     }
     return ExportFiles(data, manifest)
 

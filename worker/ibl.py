@@ -5,8 +5,12 @@ and the export; the result is the export's manifest (``relight export``'s sideca
 roughness, method, orders, predicted error and App. B bound, SH9 in every convention, the sun report), the seconds
 per stage and level (``stage_seconds``: the job's ``measured`` record) and two files:
 ``chain.ktx2`` (format ``ktx2``: the KTX2 cube chain, byte-identical to ``relight export``'s for the same map and
-parameters) or ``sh.json`` (format ``sh``: the SH9 document), plus ``manifest.json`` (the manifest: no timings, so
-that a job computed again writes the same bytes).
+parameters), ``lighting.glb`` (format ``gltf``: ``relight export --format gltf``'s GLB) or ``sh.json`` (format
+``sh``: the SH9 document), plus ``manifest.json`` (the manifest: no timings, so that a job computed again writes
+the same bytes). ``brdf`` (a spec string) is ``--brdf``.
+
+The ``dfg`` kind's task, :func:`compute_dfg`, writes ``relight dfg``'s file (``relight.dfg.dfg_file``) as
+``dfg.exr``, ``dfg.png`` or ``dfg.ktx2``.
 """
 
 from __future__ import annotations
@@ -18,10 +22,14 @@ from typing import Any
 from relight.worker.progress import JobContext
 
 JSON = "application/json"
+#: Media type of binary glTF (IANA registration, glTF 2.0 specification §4.4.4).
+GLB = "model/gltf-binary"
+#: Media types of the DFG table's formats.
+DFG_MEDIA = {"exr": "image/x-exr", "png": "image/png", "ktx2": "image/ktx2"}
 
 
 def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
-    from relight.engine_export import KTX2_MEDIA_TYPE, chain_export, sh_export, without_seconds
+    from relight.engine_export import KTX2_MEDIA_TYPE, chain_export, gltf_export, sh_export, without_seconds
     from relight.envmap import read_envmap
 
     t0 = time.perf_counter()
@@ -32,8 +40,12 @@ def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
     if request["format"] == "ktx2":
         files = chain_export(env.pixels, source, target=request["target"], size=int(request["size"]),
                              levels=request.get("levels"), epsilon=float(request["epsilon"]), sun_spec=request["sun"],
-                             pixel_format=request.get("pixel_format", "rgba16f"))
+                             pixel_format=request.get("pixel_format", "rgba16f"), brdf=request.get("brdf"))
         name, media = "chain.ktx2", KTX2_MEDIA_TYPE
+    elif request["format"] == "gltf":
+        files = gltf_export(env.pixels, source, size=int(request["size"]), levels=request.get("levels"),
+                            epsilon=float(request["epsilon"]), sun_spec=request["sun"], brdf=request.get("brdf"))
+        name, media = "lighting.glb", GLB
     else:
         files = sh_export(env.pixels, source, sun_spec=request["sun"])
         name, media = "sh.json", JSON
@@ -45,3 +57,18 @@ def compute_ibl(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
     return {"manifest": manifest, "file": name, "task_seconds": time.perf_counter() - t0, "stage_seconds": stages,
             "files": {name: {"sha256": ctx.store.put_bytes(files.data), "media_type": media},
                       "manifest.json": {"sha256": ctx.store.put_bytes(manifest_bytes), "media_type": JSON}}}
+
+
+def compute_dfg(ctx: JobContext, request: dict[str, Any]) -> dict[str, Any]:
+    """The split-sum DFG table as ``relight dfg`` writes it (module docstring)."""
+    from relight.dfg import dfg_file
+
+    t0 = time.perf_counter()
+    ctx.report("integrating", 0.1)
+    fmt = request["format"]
+    data = dfg_file(int(request["size"]), multiscatter=bool(request["multiscatter"]), fmt=fmt)
+    ctx.report.check_cancelled()
+    name = f"dfg.{fmt}"
+    return {"file": name, "size": int(request["size"]), "multiscatter": bool(request["multiscatter"]),
+            "task_seconds": time.perf_counter() - t0,
+            "files": {name: {"sha256": ctx.store.put_bytes(data), "media_type": DFG_MEDIA[fmt]}}}

@@ -257,6 +257,24 @@ def _parse_term(term: str) -> Lobe | SumBRDF | FrameBRDF:
     return _build(kind, kw)
 
 
+def spec_terms(spec: str) -> list[tuple[str, dict[str, Any]]]:
+    """A spec string's terms as (kind, keyword arguments), unbuilt (a chain sets some per level,
+    ``relight.brdf.normal_view``); path kinds give ``{"path": ...}``."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise InputError(f"empty BRDF spec; valid kinds are {VALID_KINDS}")
+    out: list[tuple[str, dict[str, Any]]] = []
+    for term in _split_terms(spec):
+        kind, sep, args = term.strip().partition(":")
+        kind = kind.strip().lower()
+        if kind not in _KEYS:
+            raise InputError(f"unknown BRDF kind {kind!r}; valid kinds are {VALID_KINDS}")
+        if sep and not args.strip():
+            raise InputError(f"{kind}: nothing after ':'")
+        out.append((kind, {"path": args.strip()} if kind in _PATH_KINDS else
+                    _parse_args(kind, args) if args.strip() else {}))
+    return out
+
+
 def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 

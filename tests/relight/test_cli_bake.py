@@ -124,3 +124,36 @@ def test_gltf_items(tmp_path: Path) -> None:
     assert (out / "a.glb").read_bytes() == ref.read_bytes()
     again = _bake(*map(str, maps), "--target", "gltf", "--format", "gltf", "--size", "4", "--out", str(out), "--json")
     assert [r["status"] for r in json.loads(again.stdout)["items"]] == ["skipped", "skipped"]
+
+
+def test_one_output_set_per_map_and_material(tmp_path: Path) -> None:
+    """``--brdf SPEC [--brdf SPEC...]``: a chain per map x material, named by relight.cli_bake.material_tag, each
+    the bytes of ``relight export --brdf SPEC``; SH9 once per map; a rerun skips everything, a new material is
+    the only work of the next run; a bad spec is an argument error (exit 2) before any item runs."""
+    from relight.cli_bake import material_tag
+
+    maps = _maps(tmp_path)
+    out = tmp_path / "out"
+    metal, phong = "gltf-pbr:base=0.9/0.6/0.2,metallic=1", "phong:s=32"
+    args = [*map(str, maps), "--target", "three", "--size", "4", "--out", str(out), "--json"]
+    first = _bake(*args, "--brdf", metal, "--brdf", phong)
+    assert first.returncode == 0, first.stderr
+    rows = json.loads(first.stdout)["items"]
+    assert [(Path(r["map"]).name, r["format"], r.get("brdf")) for r in rows] == [
+        ("a.exr", "ktx2", metal), ("a.exr", "ktx2", phong), ("a.exr", "sh", None),
+        ("b.exr", "ktx2", metal), ("b.exr", "ktx2", phong), ("b.exr", "sh", None)]
+    tags = [material_tag(metal), material_tag(phong)]
+    assert tags[0].startswith("gltf-pbr_base=0.9_0.6_0.2_metallic=1-") and len(set(tags)) == 2
+    expect = sorted([f"{m}.{t}.three.ktx2{j}" for m in "ab" for t in tags for j in ("", ".json")]
+                    + ["a.sh.json", "b.sh.json"])
+    assert sorted(p.name for p in out.iterdir()) == expect
+    ref = tmp_path / "ref.ktx2"
+    subprocess.run([sys.executable, "-m", "relight.cli", "export", str(maps[1]), "--target", "three", "--size", "4",
+                    "--brdf", metal, "--out", str(ref)], check=True, capture_output=True)
+    assert (out / f"b.{tags[0]}.three.ktx2").read_bytes() == ref.read_bytes()
+    assert json.loads((out / f"b.{tags[0]}.three.ktx2.json").read_text())["brdf"] == metal
+    assert read_ktx2(ref.read_bytes()).metadata["brdf"] == metal
+    again = _bake(*args, "--brdf", metal, "--brdf", phong, "--brdf", "lambert:albedo=0.5")
+    assert [r["status"] for r in json.loads(again.stdout)["items"]] == ["skipped", "skipped", "done", "skipped"] * 2
+    bad = _bake(*args, "--brdf", "kajiya-kay:s=8")
+    assert bad.returncode == 2 and "tangent" in bad.stderr

@@ -84,6 +84,7 @@ CASES: dict[str, Case] = {
                        "/jobs/{id}/files/{name}"),
     "ibl": ("/jobs", lambda i: {"envmap": i["env"], "target": "three", "format": "ktx2", "size": 8},
             "/jobs/{id}/files/{name}"),
+    "dfg": ("/jobs", lambda i: {"size": 16, "format": "exr"}, "/jobs/{id}/files/{name}"),
     "inout_prt": ("/jobs", lambda i: {"mesh": i["mesh"], "brdf": "phong:s=8", "order": 2, "rays": 64},
                   "/jobs/{id}/files/{name}"),
     "sh_table": ("/jobs", lambda i: {"brdf": "phong:s=8", "order": 2, "resolution": 8}, "/jobs/{id}/files/{name}"),

@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from relight.client.sdk import RelightClient
-from relight.engine_export import chain_export, sh_export, without_seconds
+from relight.engine_export import chain_export, gltf_export, sh_export, without_seconds
 from relight.envmap import read_envmap
 from relight.ktx2 import read_ktx2
 
@@ -47,10 +47,10 @@ def http(served: dict[str, Any]) -> Iterator[httpx.Client]:
         yield c
 
 
-def _get_when_done(http: httpx.Client, url: str, params: dict[str, Any]) -> httpx.Response:
+def _get_when_done(http: httpx.Client, url: str, params: dict[str, Any], kind: str = "ibl") -> httpx.Response:
     first = http.get(url, params=params)
     if first.status_code == 202:
-        assert first.headers["location"] == f"/jobs/{first.json()['id']}" and first.json()["kind"] == "ibl"
+        assert first.headers["location"] == f"/jobs/{first.json()['id']}" and first.json()["kind"] == kind
         return wait_until(lambda: (r := http.get(url, params=params)).status_code == 200 and r, 300, "the ibl job")
     return first
 
@@ -94,9 +94,62 @@ def test_sh_resource_ignores_chain_parameters(http: httpx.Client, served: dict[s
     assert other.status_code == 200 and other.headers["x-relight-job"] == r.headers["x-relight-job"]
 
 
+METAL = "gltf-pbr:base=0.9/0.6/0.2,metallic=1"
+
+
+def test_brdf_chain_equals_the_core(http: httpx.Client, served: dict[str, Any]) -> None:
+    """``brdf`` is ``relight export --brdf SPEC``: the same bytes as the core's chain of that lobe family, a job of
+    its own; the default lobe's request stays without the key (its job id is the one it always had)."""
+    url = f"/envmaps/{served['env']}/ibl"
+    r = _get_when_done(http, url, {"size": 4, "brdf": METAL})
+    local = chain_export(read_envmap(served["path"]).pixels, {}, target="three", size=4, levels=None,
+                         epsilon=2.5e-5, sun_spec="keep", brdf=METAL)
+    assert r.content == local.data and read_ktx2(r.content).metadata["brdf"] == METAL
+    plain = _get_when_done(http, url, {"size": 4})
+    assert plain.content != r.content and plain.headers["x-relight-job"] != r.headers["x-relight-job"]
+    request = http.get(f"/jobs/{plain.headers['x-relight-job']}").json()["request"]
+    assert "brdf" not in request and http.get(f"/jobs/{r.headers['x-relight-job']}").json()["request"]["brdf"] == METAL
+    # SH9 is the lighting's alone: a brdf does not make another SH job
+    sh = _get_when_done(http, url, {"format": "sh"})
+    assert http.get(url, params={"format": "sh", "brdf": METAL}).headers["x-relight-job"] == sh.headers["x-relight-job"]
+
+
+def test_gltf_resource_equals_the_core(http: httpx.Client, served: dict[str, Any]) -> None:
+    r = _get_when_done(http, f"/envmaps/{served['env']}/ibl", {"format": "gltf", "target": "gltf", "size": 4})
+    assert r.headers["content-type"] == "model/gltf-binary" and r.content[:4] == b"glTF"
+    local = gltf_export(read_envmap(served["path"]).pixels, {}, size=4, levels=None, epsilon=2.5e-5, sun_spec="keep")
+    assert r.content == local.data  # relight export --format gltf's bytes
+    manifest = http.get(f"/jobs/{r.headers['x-relight-job']}/result").json()["manifest"]
+    assert without_seconds({**manifest, "source": {}}) == without_seconds({**local.manifest, "source": {}})
+
+
+@pytest.mark.parametrize(("fmt", "multiscatter"), [("exr", False), ("png", True), ("ktx2", False)])
+def test_dfg_resource_equals_the_cli(http: httpx.Client, tmp_path: Path, fmt: str, multiscatter: bool) -> None:
+    params = {"size": 16, "format": fmt, "multiscatter": str(multiscatter).lower()}
+    r = _get_when_done(http, "/dfg", params, kind="dfg")
+    assert r.headers["content-type"] == {"exr": "image/x-exr", "png": "image/png", "ktx2": "image/ktx2"}[fmt]
+    out = tmp_path / f"dfg.{fmt}"
+    cmd = [sys.executable, "-m", "relight.cli", "dfg", "--size", "16", "--out", str(out)]
+    subprocess.run(cmd + (["--multiscatter"] if multiscatter else []), check=True, capture_output=True, timeout=600)
+    assert r.content == out.read_bytes()
+    again = http.get("/dfg", params=params)  # cached: the same job
+    assert again.status_code == 200 and again.headers["x-relight-job"] == r.headers["x-relight-job"]
+
+
+@pytest.mark.parametrize(("params", "field"), [({"size": 1}, "size"), ({"size": 4096}, "size"),
+                                               ({"format": "tiff"}, "format"), ({"multiscatter": "perhaps"},
+                                                                                "multiscatter")])
+def test_bad_dfg_parameters_name_themselves(http: httpx.Client, params: dict[str, Any], field: str) -> None:
+    body = assert_problem(http.get("/dfg", params=params), 422)
+    assert field in json.dumps(body), body
+
+
 @pytest.mark.parametrize(("params", "field"), [
     ({"size": 48}, "power of two"), ({"size": 2048}, "size"), ({"sun": "clamp=0"}, "sun"),
     ({"sun": "blind"}, "sun"), ({"target": "unity"}, "target"), ({"size": 4, "levels": 4}, "levels"),
+    ({"brdf": "nope:x=1"}, "brdf"), ({"brdf": "kajiya-kay:s=8"}, "tangent"), ({"brdf": ""}, "brdf"),
+    ({"format": "gltf", "target": "three"}, "target gltf"),
+    ({"format": "gltf", "target": "gltf", "pixel_format": "e5b9g9r9"}, "pixel_format"),
 ])
 def test_bad_parameters_name_themselves(http: httpx.Client, served: dict[str, Any], params: dict[str, Any],
                                         field: str) -> None:
@@ -131,6 +184,14 @@ def test_sdk_and_cli_server_equal_local(served: dict[str, Any], tmp_path: Path) 
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "served.ktx2").read_bytes() == (tmp_path / "local.ktx2").read_bytes()
+    # --brdf and --format gltf through the service too
+    gl = [sys.executable, "-m", "relight.cli", "export", str(served["path"]), "--target", "gltf", "--size", "4",
+          "--format", "gltf", "--brdf", METAL]
+    subprocess.run([*gl, "--out", str(tmp_path / "local.glb")], check=True, capture_output=True, timeout=600)
+    proc = subprocess.run([*gl, "--out", str(tmp_path / "served.glb"), "--server", served["url"]],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "served.glb").read_bytes() == (tmp_path / "local.glb").read_bytes()
 
 
 def test_bake_server_equals_local(served: dict[str, Any], tmp_path: Path) -> None:
@@ -157,6 +218,28 @@ def test_bake_server_equals_local(served: dict[str, Any], tmp_path: Path) -> Non
     # the served bake's items are skipped by a local rerun (one key, whoever computed it)
     rerun = subprocess.run([*bake, "--out", str(tmp_path / "server")], capture_output=True, text=True, timeout=600)
     assert [r["status"] for r in json.loads(rerun.stdout)["items"]] == ["skipped"] * 4
+
+
+def test_bake_materials_server_equals_local(served: dict[str, Any], tmp_path: Path) -> None:
+    """The same case with two materials (``--brdf`` twice) and the glTF format: one chain and one GLB per map x
+    material, every file byte-identical between ``--local`` and ``--server`` but the sidecars' seconds."""
+    bake = [sys.executable, "-m", "relight.cli", "bake", str(served["path"]), "--target", "gltf", "--size", "4",
+            "--format", "ktx2,gltf,sh", "--brdf", METAL, "--brdf", "phong:s=32", "--json"]
+    loc = subprocess.run([*bake, "--out", str(tmp_path / "local"), "--local"], capture_output=True, text=True,
+                         timeout=600)
+    srv = subprocess.run([*bake, "--out", str(tmp_path / "server"), "--server", served["url"], "-j", "2"],
+                         capture_output=True, text=True, timeout=600)
+    assert loc.returncode == 0 and srv.returncode == 0, (loc.stderr, srv.stderr)
+    assert [r["status"] for r in json.loads(srv.stdout)["items"]] == ["done"] * 5
+    names = sorted(p.name for p in (tmp_path / "local").iterdir())
+    assert names == sorted(p.name for p in (tmp_path / "server").iterdir()) and len(names) == 9
+    assert sum(n.endswith(".glb") for n in names) == 2 and sum(n.endswith(".ktx2") for n in names) == 2
+    for name in names:
+        a, b = (tmp_path / "local" / name).read_bytes(), (tmp_path / "server" / name).read_bytes()
+        if name.endswith((".ktx2.json", ".glb.json")):
+            assert without_seconds(json.loads(a)) == without_seconds(json.loads(b)), name
+        else:
+            assert a == b, name
 
 
 def test_submit_with_sun_prefilters_the_clamped_map(served: dict[str, Any]) -> None:

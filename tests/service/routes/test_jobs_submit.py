@@ -90,6 +90,7 @@ SAMPLES: dict[str, Callable[[dict[str, Any], int], dict[str, Any]]] = {
     "gaussian_fit": lambda s, k: {"brdf": "phong:s=16", "lobes": 1, "max_lobes": 1, "elevations": 2 + k},
     "gaussian_chain": lambda s, k: {"envmap": s["env"], "levels": 2 + k},
     "ibl": lambda s, k: {"envmap": s["env"], "target": "gltf", "size": 4, "levels": 2 + k},
+    "dfg": lambda s, k: {"size": 16 + k, "format": "ktx2"},
     "factorization": lambda s, k: {"brdf": "phong:s=8", "resolution": 8 + k, "factors": 2},
     "inout_prt": lambda s, k: {"mesh": s["mesh"], "brdf": "phong:s=4", "terms": 3, "order": 1, "rays": 16 + k},
     "sh_transfer": lambda s, k: {"mesh": s["mesh"], "brdf": "phong:s=4", "order": 1, "resolution": 4,
