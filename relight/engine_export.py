@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-#: Export formats (``--format``; the service's ``format`` parameter takes ktx2 and sh).
+#: Export formats (``--format``; the service's ``format`` parameter takes all three).
 FORMATS = ("ktx2", "sh", "gltf")
 #: Targets (``relight.cube_chain.TARGET_MAPPING``'s keys, repeated so that argument parsers import nothing numerical;
 #: tests/relight/test_engine_export.py checks they agree).
