@@ -1,26 +1,15 @@
-// Engine exports of the current map (issue 17, item 9): download buttons for every export the API serves
-// (GET /envmaps/{id}/ibl: the KTX2 prefiltered cube chain per target engine, the SH9 document with every
-// engine convention), and a side-by-side of relight's chain against three.js' own MeshStandardMaterial +
-// PMREMGenerator on the same map (engine_compare.js, through @relight/three).
+// Engine exports of the current map and material (issue 17, item 9): download buttons for every export the API
+// serves (GET /envmaps/{id}/ibl: the KTX2 prefiltered cube chain per target engine, the glTF lighting GLB, the
+// same two with the current material's lobe per level (relight export --brdf SPEC), the SH9 document with every
+// engine convention; GET /dfg: the split-sum DFG table as relight dfg writes it), and a side-by-side of relight's
+// chain against three.js' own MeshStandardMaterial + PMREMGenerator on the same map (engine_compare.js, through
+// @relight/three).
 import * as THREE from 'three';
 
 import { drawSideBySide, ROUGHNESS } from './engine_compare.js';
+import { exportList, MEDIA, specString } from './export_list.js';
 
-export const TARGETS = ['three', 'filament', 'gltf', 'babylon'];
-export const CONVENTIONS = ['three', 'gltf', 'filament', 'babylon', 'raw'];
-
-/**
- * Every export of map `id`: [label, file name, query string, SH convention or null]. A convention's file is its
- * entry of the API's sh.json (`relight sh --convention C`'s fields: convention, quantity, coefficients).
- */
-export function exportList(id) {
-  const short = id.slice(0, 12);
-  return [
-    ...TARGETS.map((t) => [`KTX2 ${t}`, `${short}-${t}.ktx2`, `target=${t}&format=ktx2`, null]),
-    ['SH9 (all conventions)', `${short}-sh9.json`, 'format=sh', null],
-    ...CONVENTIONS.map((c) => [`SH9 ${c}`, `${short}-sh9-${c}.json`, 'format=sh', c]),
-  ];
-}
+export { CONVENTIONS, DFG_TABLES, exportList, specString, TARGETS } from './export_list.js';
 
 /** One convention's document from the API's sh.json bytes. */
 export function conventionDocument(shJsonBytes, convention) {
@@ -33,10 +22,10 @@ export function conventionDocument(shJsonBytes, convention) {
     sun: doc.sun ?? null };
 }
 
-/** GET the export, waiting while its job runs (202 + Retry-After); the file's bytes. */
-export async function fetchExport(api, id, query, onWait = () => {}) {
+/** GET an export (an API path), waiting while its job runs (202 + Retry-After); the file's bytes. */
+export async function fetchExport(api, path, onWait = () => {}) {
   for (;;) {
-    const resp = await api.request('GET', `/envmaps/${id}/ibl?${query}`, { as: 'response' });
+    const resp = await api.request('GET', path, { as: 'response' });
     if (resp.status === 200) {
       return new Uint8Array(await resp.arrayBuffer());
     }
@@ -75,30 +64,37 @@ export function initExports(state, $, showError) {
     $('exports-status').textContent = text;
   };
 
+  const material = () => specString(state.currentBrdf?.() ?? null);
+
   function refresh() {
     const box = $('exports-buttons');
     box.textContent = '';
     const id = state.envmapId;
     panel.shownFor = id;
+    panel.material = material();
     box.dataset.envmap = id || ''; // the map these buttons export (tests wait for it)
+    box.dataset.brdf = panel.material || '';
     if (!id) {
       box.textContent = 'upload an environment map';
       return;
     }
-    for (const [label, name, query, convention] of exportList(id)) {
+    for (const [label, name, path, convention, query] of exportList(id, panel.material)) {
       const b = document.createElement('button');
       b.type = 'button';
       b.textContent = label;
-      b.dataset.export = convention ? `${query}&convention=${convention}` : query;
+      b.dataset.url = path;
+      if (query !== null) {
+        b.dataset.export = convention ? `${query}&convention=${convention}` : query;
+      }
       b.addEventListener('click', async () => {
         showError('exports-error', null);
         try {
           status(`${label}: computing`);
-          let bytes = await fetchExport(state.api, id, query, (job) => status(`${label}: ${job.state}`));
+          let bytes = await fetchExport(state.api, path, (job) => status(`${label}: ${job.state}`));
           if (convention) {
             bytes = new TextEncoder().encode(`${JSON.stringify(conventionDocument(bytes, convention), null, 2)}\n`);
           }
-          saveAs(bytes, name, name.endsWith('.json') ? 'application/json' : 'image/ktx2');
+          saveAs(bytes, name, MEDIA[name.split('.').pop()]);
           panel.downloads += 1;
           status(`${label}: ${bytes.length} bytes`);
         } catch (err) {
@@ -120,8 +116,8 @@ export function initExports(state, $, showError) {
     try {
       status('three chain: computing');
       // three's own layout: faces 256^2 down to 8^2 (LOD_MIN = 3), as PMREMGenerator writes them
-      const chainBytes = await fetchExport(state.api, id, 'target=three&format=ktx2&size=256&levels=6',
-        (job) => status(`three chain: ${job.state}`));
+      const chainPath = `/envmaps/${id}/ibl?target=three&format=ktx2&size=256&levels=6`;
+      const chainBytes = await fetchExport(state.api, chainPath, (job) => status(`three chain: ${job.state}`));
       renderer ??= new THREE.WebGLRenderer({ canvas: $('exports-canvas'), antialias: false,
         preserveDrawingBuffer: true });
       panel.rms = drawSideBySide(renderer, { chainBytes, halfRgb: env.halfRgb, height: env.height,
@@ -139,8 +135,9 @@ export function initExports(state, $, showError) {
   panel.refresh = refresh;
   refresh();
   // selectEnvmap calls panel.refresh() when the map changes; the poll catches any other change of state.envmapId
+  // and every change of the material
   const timer = setInterval(() => {
-    if (panel.shownFor !== state.envmapId) {
+    if (panel.shownFor !== state.envmapId || panel.material !== material()) {
       refresh();
     }
   }, 500);

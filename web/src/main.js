@@ -597,6 +597,7 @@ async function main() {
   initShTables(state, $, showError);
   initBrushed(state, $, showError);
   initOrderGrid(state, $, showError);
+  state.currentBrdf = currentBrdf; // the exports panel offers the chains of the current material too
   initExports(state, $, showError);
   const fromUrl = new URLSearchParams(window.location.search).get('shrm');
   if (fromUrl) {
