@@ -5,7 +5,7 @@
                  [--pixel-format F] --out DIR [-j N] [--local | --server URL] [--json]
 
 Items: per map, ``ktx2`` writes ``DIR/<stem>.<target>.ktx2`` (+ ``.json``, ``relight export``'s files), ``gltf``
-``DIR/<stem>.glb`` (+ ``.json``; ``relight export --format gltf``, ``--target gltf`` only, computed locally) and
+``DIR/<stem>.glb`` (+ ``.json``; ``relight export --format gltf``, ``--target gltf`` only) and
 ``sh`` writes ``DIR/<stem>.sh.json`` (every convention of ``relight.sh9``). Each ``--brdf SPEC`` is one material:
 the chain items (ktx2, gltf) are made once per map x material, named ``DIR/<stem>.<material>.<target>.ktx2`` and
 ``DIR/<stem>.<material>.glb`` with ``<material>`` = :func:`material_tag` (the spec's safe characters and a hash);
@@ -22,8 +22,8 @@ One progress row per item (``done``,
 * **One failure fails alone.** An item that raises records its one-line error and the bake goes on; the exit
   status is 1 if any item failed (2 for bad arguments, as every command).
 * **Local or served.** ``--server URL`` (``--local``, the default, computes here) uploads each map and reads its
-  export from the service's ``GET /envmaps/{id}/ibl`` (the client's ``relight.remote`` entry point): the KTX2 and
-  SH files are byte-identical to a local bake's, and so are the sidecars apart from their ``seconds``. Every
+  export from the service's ``GET /envmaps/{id}/ibl`` (the client's ``relight.remote`` entry point): the KTX2,
+  GLB and SH files are byte-identical to a local bake's, and so are the sidecars apart from their ``seconds``. Every
   item's ``source`` is the map's file name, SHA-256 and size, whichever computed it; JSON keys are sorted.
 * **Parallel.** ``-j N`` runs N items at a time: worker processes locally (each item is CPU work), threads with
   ``--server`` (each item waits on the service). Rows are printed as items finish.
