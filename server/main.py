@@ -14,6 +14,7 @@ from relight.server import problems
 from relight.server.api.router import include_routes
 from relight.server.config import Settings, get_settings
 from relight.server.limits import BodyLimit
+from relight.server.services.health import HealthEndpoint
 from relight.server.state import Services
 from relight.server.viewer import mount_viewer
 
@@ -42,6 +43,7 @@ def create_app(settings: Settings | None = None, *, on_ready: Callable[[FastAPI]
     app = FastAPI(title="relight", version=relight.__version__, description=DESCRIPTION, lifespan=lifespan)
     app.state.settings = settings
     problems.install(app)
+    app.add_middleware(HealthEndpoint)  # innermost: GET /health from the probes' pre-rendered answer, O(1)
     app.add_middleware(BodyLimit, settings=settings)  # inside CORS: its 401/413 answers carry the CORS headers
     if settings.cors_origins:
         app.add_middleware(

@@ -7,6 +7,11 @@ background task (:class:`HealthMonitor`) probes every ``interval_s`` seconds, th
 time limit and off the event loop (the database ping and the disk probe each on a thread of its own), and the route
 answers from the last snapshot. A snapshot older than :data:`STALE_FACTOR` intervals (the monitor itself stuck) is
 reported as a problem, so a hung probe still shows as ``degraded``.
+
+The answer itself is rendered once per probe round (:meth:`HealthMonitor.body`: the ``Health`` JSON as bytes) and
+served by :class:`HealthEndpoint`, a pure ASGI middleware that answers ``GET /health`` before FastAPI's routing,
+dependency injection and response-model validation: on the request path there is one clock read and one
+comparison (O(1), no database, cluster or disk round trip, no pydantic work). ``bench/health.py`` measures it.
 """
 
 from __future__ import annotations
@@ -20,8 +25,10 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from typing import Final, TypeVar
+from typing import Any, Final, TypeVar
 
+import relight
+from relight.contract.models import Health
 from relight.server.cluster import Cluster
 from relight.server.config import Settings
 from relight.server.db import Database
@@ -34,6 +41,10 @@ T = TypeVar("T")
 PROBE_TIMEOUT_S: Final = 2.0
 #: A snapshot older than this many intervals plus the probe time limit means the monitor is stuck.
 STALE_FACTOR: Final = 5
+
+
+#: Header lines of every ``/health`` answer (the body is the ``Health`` JSON; it changes every probe round).
+_HEADERS: Final = [(b"content-type", b"application/json"), (b"cache-control", b"no-store")]
 
 
 @dataclass(frozen=True)
@@ -61,6 +72,8 @@ class HealthMonitor:
         self._disk_thread = ThreadPoolExecutor(1, thread_name_prefix="relight-health-disk")
         self._task: asyncio.Task[None] | None = None
         self.snapshot: Snapshot | None = None
+        #: (snapshot, stale, rendered body) of the last :meth:`body`; rendered again only when either changes.
+        self._rendered: tuple[Snapshot | None, bool, bytes] | None = None
 
     async def start(self) -> None:
         """Probe once (the first answer is never empty), then keep probing in the background."""
@@ -120,6 +133,24 @@ class HealthMonitor:
                                                                     self._disk())
         return Snapshot(workers, (*database, *scheduler, *disk), datetime.now(UTC), time.monotonic())
 
+    def health(self) -> Health:
+        """The ``GET /health`` answer from the last snapshot (no probing)."""
+        snap, problems = self.current()
+        return Health(status="degraded" if problems else "ok", version=relight.__version__,
+                      algorithm_version=relight.ALGORITHM_VERSION,
+                      scheduler="external" if self.settings.scheduler else "embedded", workers=snap.workers,
+                      database=self.db.dialect, problems=problems, probed_at=snap.probed_at)
+
+    def body(self) -> bytes:
+        """:meth:`health` as JSON bytes, rendered once per snapshot (and once more when it turns stale)."""
+        snap = self.snapshot
+        stale = snap is None or time.monotonic() - snap.monotonic > STALE_FACTOR * self.interval_s + PROBE_TIMEOUT_S
+        rendered = self._rendered
+        if rendered is None or rendered[0] is not snap or rendered[1] != stale or snap is None:
+            rendered = (snap, stale, self.health().model_dump_json().encode())
+            self._rendered = rendered
+        return rendered[2]
+
     def current(self) -> tuple[Snapshot, list[str]]:
         """The last snapshot and its problems, plus one when it is stale (no work: called on the event loop)."""
         snap = self.snapshot
@@ -139,3 +170,28 @@ class HealthMonitor:
             self._task = None
         self._db_thread.shutdown(wait=False)
         self._disk_thread.shutdown(wait=False)
+
+
+class HealthEndpoint:
+    """Pure ASGI middleware: ``GET``/``HEAD /health`` answered with :meth:`HealthMonitor.body` of the running
+    services (``app.state.services.health``), everything else passed on (module docstring). Added inside CORS, so
+    its answers carry the CORS headers as any route's."""
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] != "http" or scope["path"] != "/health" or scope["method"] not in ("GET", "HEAD"):
+            await self.app(scope, receive, send)
+            return
+        services = getattr(scope["app"].state, "services", None)
+        if services is None:  # not started (or stopped): the route answers
+            await self.app(scope, receive, send)
+            return
+        body = services.health.body()
+        await send({"type": "http.response.start", "status": 200,
+                    "headers": [*_HEADERS, (b"content-length", str(len(body)).encode())]})
+        await send({"type": "http.response.body", "body": b"" if scope["method"] == "HEAD" else body})
+
+
+__all__ = ["HealthEndpoint", "HealthMonitor", "Snapshot"]

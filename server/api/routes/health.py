@@ -5,7 +5,6 @@ from __future__ import annotations
 from fastapi import APIRouter
 from starlette.responses import PlainTextResponse
 
-import relight
 from relight.contract.models import Health
 from relight.server.api.deps import ServicesDep
 
@@ -19,11 +18,7 @@ async def health(services: ServicesDep) -> Health:
     from the background probes' last round (``probed_at``; :mod:`relight.server.services.health`), so it does no
     work under load. The scheduler's address is not published: whoever reaches a Dask scheduler can run code in
     the cluster."""
-    snap, problems = services.health.current()
-    return Health(status="degraded" if problems else "ok", version=relight.__version__,
-                  algorithm_version=relight.ALGORITHM_VERSION,
-                  scheduler="external" if services.settings.scheduler else "embedded", workers=snap.workers,
-                  database=services.db.dialect, problems=problems, probed_at=snap.probed_at)
+    return services.health.health()  # the app's HealthEndpoint answers first with the same JSON, pre-rendered
 
 
 @router.get("/metrics", response_class=PlainTextResponse,

@@ -1,0 +1,120 @@
+"""``GET /health`` latency, idle and under concurrent API load (issue 12, item 1: within 100 ms under any load).
+
+    PYTHONPATH=. python3 bench/health.py [--clients 16] [--seconds 30] [--out bench/results/health.json]
+
+Starts ``relight serve`` (embedded cluster, two worker processes) on a fresh data directory, uploads one map, then:
+
+1. **Idle.** 500 sequential ``/health`` calls on one connection: latency percentiles (the request path's own cost).
+2. **Load.** ``--clients`` concurrent clients loop over ``GET /jobs``, ``GET /envmaps/{id}``, ``POST /plan`` (a
+   Phong plan: planned in the sandbox pool) and SHRM submissions for ``--seconds`` while ``/health`` is asked every
+   50 ms on its own connection: its percentiles, calls over 100 ms, and the load requests answered.
+
+Prints a markdown table and writes JSON, with the machine's load average. Not a test: numbers depend on the machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tests.service.support import exr_bytes, make_envmap, start_server  # noqa: E402
+
+
+def pct(values: list[float], q: float) -> float:
+    return sorted(values)[min(len(values) - 1, int(q * len(values)))] if values else float("nan")
+
+
+def summary(latencies: list[float]) -> dict[str, Any]:
+    ms = [1000 * x for x in latencies]
+    return {"calls": len(ms), "p50_ms": round(pct(ms, 0.5), 2), "p99_ms": round(pct(ms, 0.99), 2),
+            "max_ms": round(max(ms), 2), "over_100ms": sum(m > 100 for m in ms)}
+
+
+async def health_calls(url: str, stop: asyncio.Event | None, n: int, interval: float) -> list[float]:
+    out: list[float] = []
+    async with httpx.AsyncClient(base_url=url, timeout=30) as http:
+        while (stop is None and len(out) < n) or (stop is not None and not stop.is_set()):
+            t = time.perf_counter()
+            r = await http.get("/health")
+            out.append(time.perf_counter() - t if r.status_code == 200 else float("inf"))
+            if interval:
+                await asyncio.sleep(interval)
+    return out
+
+
+async def loader(url: str, env: str, k: int, stop: asyncio.Event, counts: dict[str, int]) -> None:
+    async with httpx.AsyncClient(base_url=url, timeout=120) as http:
+        i = 0
+        while not stop.is_set():
+            i += 1
+            step = i % 4
+            if step == 0:
+                r = await http.get("/jobs", params={"limit": 100})
+            elif step == 1:
+                r = await http.get(f"/envmaps/{env}")
+            elif step == 2:
+                r = await http.post("/plan", json={"envmap": env, "brdf": {"kind": "phong", "s": 8 + k + i % 7},
+                                                   "epsilon": 0.05})
+            else:
+                r = await http.post("/shrms", json={"envmap": env, "brdf": "phong:s=8", "epsilon": 0.05,
+                                                    "size": 8 + (1000 * k + i) % 200})
+            key = str(r.status_code)
+            counts[key] = counts.get(key, 0) + 1
+
+
+async def run(url: str, env: str, clients: int, seconds: float) -> dict[str, Any]:
+    idle = summary(await health_calls(url, None, 500, 0.0))
+    stop = asyncio.Event()
+    counts: dict[str, int] = {}
+    watch = asyncio.create_task(health_calls(url, stop, 0, 0.05))
+    load = [asyncio.create_task(loader(url, env, k, stop, counts)) for k in range(clients)]
+    await asyncio.sleep(seconds)
+    stop.set()
+    loaded = summary(await watch)
+    await asyncio.gather(*load)
+    return {"idle": idle, "loaded": loaded, "load_requests": counts, "loadavg": list(os.getloadavg())}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--clients", type=int, default=16)
+    ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "health.json")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory(prefix="relight-health-bench-") as tmp:
+        server = start_server(Path(tmp), {"RELIGHT_MAX_ACTIVE_JOBS": "64"})
+        try:
+            with httpx.Client(base_url=server.url, timeout=60) as http:
+                r = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=5), Path(tmp)))
+                env = r.json()["id"]
+            res = asyncio.run(run(server.url, env, args.clients, args.seconds))
+        finally:
+            server.stop()
+    res["clients"] = args.clients
+    res["seconds"] = args.seconds
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(res, indent=2))
+    print("| /health | calls | p50 ms | p99 ms | max ms | over 100 ms |")
+    print("|---|---|---|---|---|---|")
+    for name in ("idle", "loaded"):
+        s = res[name]
+        print(f"| {name} | {s['calls']} | {s['p50_ms']} | {s['p99_ms']} | {s['max_ms']} | {s['over_100ms']} |")
+    print(f"\n{args.clients} load clients for {args.seconds} s: {res['load_requests']}; load average "
+          f"{', '.join(f'{x:.1f}' for x in res['loadavg'])}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
