@@ -105,9 +105,8 @@ def run_scene(ctx: JobContext, job: dict[str, Any]) -> dict[str, Any]:
                    for entry in result.objects]
         objects = [_add_prt(store, plan, Path(tmp), entry, files) if entry.files.transfer else entry
                    for entry in objects]
-        result = dataclasses.replace(result, objects=objects, jobs=[_add_inout(store, plan, Path(tmp), run, files)
-                                                                    if run.kind == "inout_transport" and run.executed
-                                                                    else run for run in result.jobs])
+        jobs = [_add_job_textures(store, plan, Path(tmp), run, files) for run in result.jobs]
+        result = dataclasses.replace(result, objects=objects, jobs=jobs)
     out: dict[str, Any] = _jsonable({"plan": from_core(plan.report.to_json(), store),
                                      "result": from_core(result.to_json(), store), "files": files})
     return out
@@ -134,13 +133,18 @@ def _add_prt(store: BlobStore, plan: Any, tmp: Path, entry: ObjectResult,
                                 files)
 
 
-def _add_inout(store: BlobStore, plan: Any, tmp: Path, run: Any, files: dict[str, dict[str, Any]]) -> Any:
-    """The viewer's form of a planned in-out transport (``relight.worker.scene_prt``), for the plan's mesh."""
-    from relight.worker.scene_prt import add_inout_textures
+def _add_job_textures(store: BlobStore, plan: Any, tmp: Path, run: Any, files: dict[str, dict[str, Any]]) -> Any:
+    """The viewer's form of a planned in-out transport (for the plan's mesh) or SH table
+    (``relight.worker.scene_prt``); other runs as they are."""
+    from relight.worker.scene_prt import add_inout_textures, add_table_texture
 
+    if not run.executed or run.kind not in ("inout_transport", "sh_table"):
+        return run
+    npz = (tmp / next(f for f in run.files if f.endswith(".npz"))).read_bytes()
+    if run.kind == "sh_table":
+        return add_table_texture(store, npz, run, files)
     job = next(j for j in plan.report.jobs if j.id == run.id)
-    npz = next(f for f in run.files if f.endswith(".npz"))
-    return add_inout_textures(store, (tmp / npz).read_bytes(), plan.meshes[job.params["mesh"]], run, files)
+    return add_inout_textures(store, npz, plan.meshes[job.params["mesh"]], run, files)
 
 
 def _add_texture(store: BlobStore, shrm_path: Path, entry: ObjectResult,

@@ -17,6 +17,12 @@ A planned ``inout_transport`` job (seed 004, shared by the objects listed for it
 ``P.transport.bin`` (float16 RGBA vertex texture), ``P.factors.bin`` (float32 R32F rows: m, parity, sigma_k h_k),
 ``P.geometry.bin`` and ``P.inout.json`` (the job's summary: terms, m, parity, sigma, order, ..., with
 ``transport_texture``, ``factors_texture``, ``geometry``, ``bounds`` and ``bounding_radius``).
+
+A planned ``sh_table`` job (seed 003, one per anisotropic material and order) has its table in ``P.npz``;
+:func:`add_table_texture` stores what ``web/src/sh_table.js`` and the scene's ShTablePart read, as the ``sh_table``
+job kind stores it (``relight.worker.sh_tables``): ``P.table.bin`` (little-endian float16 ``[(F+1)^2, R, R, C]``,
+values beyond 65504 clamped and counted) and ``P.table.json`` (the table's manifest: order, layout, resolution, ...,
+with ``files["table.bin"]``: name, shape, dtype, ``float16_clamped``).
 """
 
 from __future__ import annotations
@@ -109,3 +115,25 @@ def add_transfer_texture(store: BlobStore, npz: bytes, mesh: Any, entry: ObjectR
     }
     _put(store, files, f"{name}.prt.json", canonical_json(manifest), "application/json")
     return dataclasses.replace(entry, files=dataclasses.replace(entry.files, prt=f"{name}.prt.json"))
+
+
+def add_table_texture(store: BlobStore, npz: bytes, run: JobRun, files: dict[str, dict[str, Any]]) -> JobRun:
+    """Store the viewer's files for one ``sh_table`` job (module docstring): ``npz`` is its ``P.npz``. Adds them to
+    ``files`` and returns the run listing them too."""
+    from relight.envmap.exr import to_half_safe
+    from relight.worker.results import canonical_json
+
+    stem = next(f for f in run.files if f.endswith(".npz"))[: -len(".npz")]
+    with np.load(io.BytesIO(npz), allow_pickle=False) as z:
+        coefficients = np.asarray(z["coefficients"], dtype=np.float32)
+        summary = json.loads(str(z["manifest"]))
+    half, clamped = to_half_safe(coefficients)
+    data = np.ascontiguousarray(np.transpose(half, (2, 0, 1, 3)), dtype="<f2")
+    names = {k: f"{stem}.{k}" for k in ("table.bin", "table.json")}
+    digest = _put(store, files, names["table.bin"], data.tobytes())
+    manifest = {**summary, "format": "relight.scene-sh-table", "format_version": MANIFEST_VERSION, "job": run.id,
+                "files": {"table.bin": {"name": names["table.bin"], "sha256": digest, "dtype": "float16",
+                                        "byte_order": "little", "shape": list(data.shape),
+                                        "order": "coefficient, row, column, channel", "float16_clamped": clamped}}}
+    _put(store, files, names["table.json"], canonical_json(manifest), "application/json")
+    return dataclasses.replace(run, files=[*run.files, *names.values()])

@@ -65,7 +65,7 @@ export function objectPosition(o) {
 /** Representations drawn by the object's SHRM (seed 000: the run synthesises their lobes into one SHRM). */
 export const SHRM_REPRESENTATIONS = ['irradiance', 'reflection_map', 'shrm_q0', 'shrm'];
 /** Representations drawn by a part of their own (scene_parts.js). */
-export const PART_REPRESENTATIONS = ['gaussian_lobes', 'diffuse_transfer', 'inout_prt'];
+export const PART_REPRESENTATIONS = ['gaussian_lobes', 'diffuse_transfer', 'inout_prt', 'sh_table'];
 
 const json = (bytes) => JSON.parse(new TextDecoder().decode(bytes));
 
@@ -138,6 +138,17 @@ async function inoutItem(pub, api, rep, base) {
   return { ...base, kind: 'inout_prt', inout, geometryBuffer, transportBuffer, factorsBuffer };
 }
 
+async function tableItem(pub, api, rep, base, tangent) {
+  const run = (pub.result?.jobs || []).find((j) => rep.jobs.includes(j.id) && j.kind === 'sh_table');
+  const file = run?.executed && run.files.find((f) => f.endsWith('.table.json'));
+  if (!file) {
+    throw new Error(`scene object ${base.name}: its SH table has no sh_table job run with a viewer form`);
+  }
+  const table = json(await api.sceneFile(pub.id, file));
+  const tableBuffer = await api.sceneFile(pub.id, table.files['table.bin'].name);
+  return { ...base, kind: 'sh_table', table, tableBuffer, tangent: tangent || null };
+}
+
 /**
  * The 3-D view's items of a finished scene (ShrmViewer.setSceneObjects): per object, one item per way its lobes
  * are drawn, each with the object's centre, bounding radius and geometry (`loadShape(shape)`: 'sphere' or a
@@ -145,7 +156,8 @@ async function inoutItem(pub, api, rep, base) {
  * viewer), 'gaussian_lobes' (each such lobe: its fit and the plan's chain, through `loaders.material` and
  * `loaders.chain`: gaussian_panel.js's materialFromLobes, gaussian.js's chainFromLevels), 'diffuse_transfer'
  * (the object's {name}.prt.json, geometry and transfer texture) and 'inout_prt' (each such lobe: its
- * inout_transport job's P.inout.json, geometry, transport and factors). An object's items after its first are `added`.
+ * inout_transport job's P.inout.json, geometry, transport and factors) and 'sh_table' (each such lobe: its sh_table
+ * job's P.table.json and float16 table, the object's tangent field). An object's items after its first are `added`.
  * Returns {items, errors}: an object with a representation the viewer cannot draw, or whose files are missing, is
  * left out with its error ({name, message}); the others are drawn.
  */
@@ -184,6 +196,8 @@ export async function sceneItems(pub, api, loadShape, loaders) {
           parts.push(gaussianItem(pub, api, rep, base, loaders));
         } else if (rep.representation === 'inout_prt') {
           parts.push(inoutItem(pub, api, rep, base));
+        } else if (rep.representation === 'sh_table') {
+          parts.push(tableItem(pub, api, rep, base, o.tangent));
         }
       }
       return { items: (await Promise.all(parts)).map((it, k) => ({ ...it, added: k > 0 })) };

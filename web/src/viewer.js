@@ -24,7 +24,7 @@ export { withShaderAttributes };
 
 const SHADER_FILES = ['fullscreen.vert.glsl', 'object.vert.glsl', 'object.frag.glsl', 'view_map.frag.glsl',
   'background.frag.glsl', 'prt.vert.glsl', 'sh_table.frag.glsl', 'gaussian.vert.glsl', 'gaussian.frag.glsl',
-  'inout.vert.glsl'];
+  'inout.vert.glsl', 'sh_table.vert.glsl'];
 const HALF_ONE = 0x3c00;
 const ORBIT_MIN_DISTANCE = 2.0; // the unit sphere's proxy box reaches sqrt(3)
 

@@ -23,17 +23,20 @@ function scene(objects) {
       factors_texture: { name: 'job02-inout_transport.factors.bin' } }),
     'job02-inout_transport.geometry.bin': new ArrayBuffer(12), 'job02-inout_transport.transport.bin': new ArrayBuffer(16),
     'job02-inout_transport.factors.bin': new ArrayBuffer(20),
+    'job03-sh_table.table.json': enc({ order: 2, files: { 'table.bin': { name: 'job03-sh_table.table.bin' } } }),
+    'job03-sh_table.table.bin': new ArrayBuffer(24),
   };
   const fileOf = { ball: { texture: 'ball.texture.json', coefficients_bin: 'ball.coefficients.bin' },
     bunny: { prt: 'bunny.prt.json', texture: 'ball.texture.json', coefficients_bin: 'ball.coefficients.bin' } };
   const pub = {
     id: 's1', state: 'succeeded',
     scene: { objects: objects.map(([name]) => ({ name, shape: name === 'bunny' ? 'bunny' : 'sphere', size: 1,
-      distance: 4, view: [0, 0, 1] })) },
+      distance: 4, view: [0, 0, 1], ...(name === 'brushed' ? { tangent: { kind: 'project', direction: [1, 0, 0] } }
+        : {}) })) },
     plan: { objects: objects.map(([name, reps]) => ({ name, viewer: 'distant', representations: reps.map((r) => ({
       kind: r === 'diffuse_transfer' ? 'lambert' : 'phong', representation: r, seed: '000',
       lobe: { kind: 'lambert', albedo: 0.5 },
-      jobs: { gaussian_lobes: ['fit', 'chain'], inout_prt: ['inout'] }[r] ?? [] })) })) },
+      jobs: { gaussian_lobes: ['fit', 'chain'], inout_prt: ['inout'], sh_table: ['table'] }[r] ?? [] })) })) },
     result: {
       objects: objects.map(([name, , own]) => ({ name, files: own ?? fileOf[name] ?? {} })),
       jobs: [
@@ -46,6 +49,8 @@ function scene(objects) {
         { id: 'inout', kind: 'inout_transport', executed: true, files: ['job02-inout_transport.npz',
           'job02-inout_transport.inout.json', 'job02-inout_transport.geometry.bin',
           'job02-inout_transport.transport.bin', 'job02-inout_transport.factors.bin'], summary: {} },
+        { id: 'table', kind: 'sh_table', executed: true, files: ['job03-sh_table.npz', 'job03-sh_table.table.bin',
+          'job03-sh_table.table.json'], summary: {} },
       ],
     },
   };
@@ -92,13 +97,32 @@ test('an in-out PRT lobe reads its inout_transport job\'s viewer files', async (
     .map((b) => b.byteLength), [12, 16, 20]);
 });
 
+test('an SH-table lobe reads its sh_table job\'s viewer files and the object\'s tangent field', async () => {
+  const s = scene([['brushed', ['sh_table']], ['plain', ['sh_table']]]);
+  const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
+  assert.deepEqual(errors, []);
+  assert.deepEqual(items.map((it) => [it.name, it.kind, it.added]), [['brushed', 'sh_table', false],
+    ['plain', 'sh_table', false]]);
+  assert.equal(items[0].table.order, 2);
+  assert.equal(items[0].tableBuffer.byteLength, 24);
+  assert.deepEqual(items[0].tangent, { kind: 'project', direction: [1, 0, 0] });
+  assert.equal(items[1].tangent, null); // the part's default: azimuthal about +Y, as the CPU's
+});
+
 test('a representation the viewer cannot draw is that object\'s error; the others are drawn', async () => {
-  const s = scene([['ball', ['shrm']], ['floor', ['sh_table']], ['teapot', ['prt_matrix']]]);
+  const s = scene([['ball', ['shrm']], ['teapot', ['prt_matrix']]]);
   const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
   assert.deepEqual(items.map((it) => it.name), ['ball']);
-  assert.deepEqual(errors.map((e) => e.name), ['floor', 'teapot']);
-  assert.match(errors[0].message, /cannot draw representation sh_table/);
-  assert.match(errors[1].message, /cannot draw representation prt_matrix/);
+  assert.deepEqual(errors.map((e) => e.name), ['teapot']);
+  assert.match(errors[0].message, /cannot draw representation prt_matrix/);
+});
+
+test('an SH-table job without its viewer form is the object\'s error', async () => {
+  const s = scene([['brushed', ['sh_table']]]);
+  s.pub.result.jobs = s.pub.result.jobs.map((j) => (j.id === 'table' ? { ...j, files: ['job03-sh_table.npz'] } : j));
+  const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
+  assert.deepEqual(items, []);
+  assert.match(errors[0].message, /no sh_table job run with a viewer form/);
 });
 
 test('missing files are the object\'s error; a plan without representations is one SHRM per object', async () => {
