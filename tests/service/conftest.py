@@ -1,8 +1,20 @@
 """Fixtures of the service tests: the shared server (real uvicorn on a free loopback port, embedded Dask cluster
-with two worker processes) and clients for it. Helpers live in :mod:`support`."""
+with two worker processes) and clients for it. Helpers live in :mod:`support`.
+
+``database`` runs a test on both databases the service supports (issue 12, item 10): once on SQLite (the default,
+a file in the server's data directory) and once on PostgreSQL (Debian's ``postgresql``, started once for the
+session by :mod:`tests.service.postgres`, one database per server data directory). It is a session-scoped
+parametrised fixture, so pytest runs the tests that use it on SQLite first and then on PostgreSQL (ids end in
+``[sqlite]`` / ``[postgresql]``); a suite opts in by starting its servers with ``start_server(...,
+database=database)``: every route test (tests/service/routes/), and the suites where the job table is what is
+tested: resume after a kill and cancellation (test_resilience), the fault-injection kills, SIGTERM and resume
+(test_faults). ``RELIGHT_TEST_DATABASES=sqlite`` (or ``postgresql``) runs one of them only, for a quicker local
+run; CI runs both.
+"""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -11,10 +23,29 @@ import pytest
 
 from relight.client.sdk import RelightClient
 
+from .postgres import Backend, start_postgres
 from .support import Server, assert_healthy, assert_problem, exr_bytes, make_envmap, start_server
 
 # Re-exported: tests elsewhere (tests/web) import these helpers from here.
 __all__ = ["Server", "assert_healthy", "assert_problem", "exr_bytes", "make_envmap", "start_server"]
+
+
+DATABASES = [d.strip() for d in os.environ.get("RELIGHT_TEST_DATABASES", "sqlite,postgresql").split(",")
+             if d.strip()]
+if not set(DATABASES) <= {"sqlite", "postgresql"} or not DATABASES:
+    raise pytest.UsageError(f"RELIGHT_TEST_DATABASES: sqlite and/or postgresql, not {DATABASES}")
+
+
+@pytest.fixture(scope="session", params=DATABASES)
+def database(request: pytest.FixtureRequest) -> Iterator[Backend]:
+    if request.param == "sqlite":
+        yield Backend("sqlite")
+        return
+    pg = start_postgres()
+    try:
+        yield Backend("postgresql", pg)
+    finally:
+        pg.stop()
 
 
 @pytest.fixture(scope="session")

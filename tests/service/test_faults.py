@@ -26,6 +26,7 @@ import pytest
 from relight.client.sdk import RelightClient
 from relight.contract.models import JobPublic, JobState
 
+from .postgres import Backend
 from .support import (
     Proc,
     Server,
@@ -105,11 +106,12 @@ def finished_once(c: RelightClient, data: Path, job_id: str, exr: bytes, before:
 
 # ------------------------------------------------------------------------------------------------ embedded
 @pytest.fixture(scope="module")
-def faulty(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, object]]:
+def faulty(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[dict[str, object]]:
     data = tmp_path_factory.mktemp("faulty")
     faults = tmp_path_factory.mktemp("faults")
     env = {"RELIGHT_TEST_FAULT_DIR": str(faults), "RELIGHT_MAX_UPLOAD_BYTES": str(4 << 20)}
-    state: dict[str, object] = {"data": data, "faults": faults, "env": env, "server": start_server(data, env)}
+    state: dict[str, object] = {"data": data, "faults": faults, "env": env, "database": database,
+                                "server": start_server(data, env, database=database)}
     yield state
     srv = state["server"]
     assert isinstance(srv, Server)
@@ -161,7 +163,9 @@ def test_server_killed_at(point: str, faulty: dict[str, object], data_tmp: Path)
         assert job_id == job.id
     server.kill()  # SIGKILL to the process group: server, scheduler and workers at once
     release(faults, point)
-    restarted = start_server(data, env, log_name=f"server-{point}.log")
+    database = faulty["database"]
+    assert isinstance(database, Backend)
+    restarted = start_server(data, env, log_name=f"server-{point}.log", database=database)
     faulty["server"] = restarted
     with restarted.client() as c:
         done = finished_once(c, data, job.id, exr, before)

@@ -20,6 +20,7 @@ import pytest
 from relight.client.sdk import RelightClient
 from relight.contract.models import JobPublic, JobState
 
+from .postgres import Backend
 from .support import (
     Server,
     assert_healthy,
@@ -35,9 +36,10 @@ DELAY_S = "3"
 
 
 @pytest.fixture(scope="module")
-def slow(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, object]]:
+def slow(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[dict[str, object]]:
     data = tmp_path_factory.mktemp("slow")
-    state: dict[str, object] = {"data": data, "server": start_server(data, {"RELIGHT_TEST_JOB_DELAY_S": DELAY_S})}
+    state: dict[str, object] = {"data": data, "database": database,
+                                "server": start_server(data, {"RELIGHT_TEST_JOB_DELAY_S": DELAY_S}, database=database)}
     yield state
     srv = state["server"]
     assert isinstance(srv, Server)
@@ -102,7 +104,9 @@ def test_server_killed_mid_job_then_restarted(slow: dict[str, object], data_tmp:
         wait_until(lambda: running(c, job.id), 30, "the job to run")
     server.kill()  # SIGKILL: server, scheduler and workers die at once, nothing is cleaned up
 
-    restarted = start_server(data, {"RELIGHT_TEST_JOB_DELAY_S": DELAY_S}, log_name="server2.log")
+    database = slow["database"]
+    assert isinstance(database, Backend)
+    restarted = start_server(data, {"RELIGHT_TEST_JOB_DELAY_S": DELAY_S}, log_name="server2.log", database=database)
     slow["server"] = restarted
     with restarted.client() as c:
         done = c.wait(job.id, timeout=90)
