@@ -48,6 +48,10 @@ def test_gaussian_panel_switches_edits_and_charts(page: Any, tmp_path: Any) -> N
     _fit(page, "ggx:alpha=0.15")
     ids = page.evaluate("[...window.relight.gaussian.materials.keys()]")
     assert len(ids) == 2
+    # _fit returns once the material is listed; its first draw may still be in flight (pixels() would then be the
+    # previous material's image): wait until it is current and draw it
+    page.wait_for_function(f"window.relight.gaussian.current === '{ids[1]}'")
+    page.evaluate("window.relight.gaussian.redraw()")
     second = _pixels(page)
     assert second.max() > 0
 
