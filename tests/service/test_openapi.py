@@ -1,10 +1,13 @@
 """Property-based run of the OpenAPI schema (schemathesis) against the live server: no 5xx, responses conform.
 
-Bounded: a few examples per operation, no deadline per example, and a per-test time limit.
+Bounded: a few examples per operation, no deadline per example, and a per-test time limit. The run has a server of
+its own, stopped with its worker processes when the module ends: the jobs fuzzed GETs start (a 1024^2 DFG table, a
+1024^2 cube chain: minutes of CPU each) must not keep the shared server's workers busy for the tests after it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -17,14 +20,21 @@ from schemathesis.checks import (
     status_code_conformance,
 )
 
-from .support import Server
+from .support import Server, start_server
 
 MAX_EXAMPLES = 8
 
 
+@pytest.fixture(scope="module")
+def fuzz_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    srv = start_server(tmp_path_factory.mktemp("fuzz"), {"RELIGHT_PRELOAD_MESHES": "bunny,teapot"})
+    yield srv
+    srv.stop()
+
+
 @pytest.fixture
-def api_schema(server: Server) -> schemathesis.BaseSchema:
-    return schemathesis.openapi.from_url(server.url + "/openapi.json")
+def api_schema(fuzz_server: Server) -> schemathesis.BaseSchema:
+    return schemathesis.openapi.from_url(fuzz_server.url + "/openapi.json")
 
 
 schema = schemathesis.pytest.from_fixture("api_schema")
