@@ -16,6 +16,7 @@ The id is the SHA-256 of the uploaded bytes: uploading the same file twice retur
 from __future__ import annotations
 
 import logging
+import uuid
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -155,7 +156,7 @@ class EnvmapService(ResourceService[Envmap, EnvmapPublic]):
     async def _analyze(self, digest: str) -> dict[str, Any]:
         s = self.settings
         fut = self.cluster.submit(
-            tasks.analyze_envmap, str(self.store.root), digest, key=f"relight-analyze-{digest}",
+            tasks.analyze_envmap, str(self.store.root), digest, key=f"relight-analyze-{digest}-{uuid.uuid4().hex[:12]}",
             max_pixels=s.max_pixels, spectrum_lmax=s.spectrum_lmax, max_stream_pixels=s.max_stream_pixels,
         )
 

@@ -18,6 +18,7 @@ way at start-up from the files ``relight.mesh.sample_file`` gives (the generated
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -109,5 +110,5 @@ class MeshService(ResourceService[Mesh, MeshPublic]):
         s = self.settings
         fut = self.cluster.submit(mesh_tasks.analyze_mesh, str(self.store.root), digest, name=name,
                                   max_bytes=self.max_bytes, max_vertices=s.max_mesh_vertices,
-                                  max_faces=s.max_mesh_faces, key=f"relight-mesh-{digest}")
+                                  max_faces=s.max_mesh_faces, key=f"relight-mesh-{digest}-{uuid.uuid4().hex[:12]}")
         return await self._decode(fut, "the mesh")
