@@ -33,6 +33,17 @@ def _client(args: argparse.Namespace) -> Any:
     return RelightClient(args.server, api_key=args.api_key, timeout=args.timeout)
 
 
+def _add_job_args(p: argparse.ArgumentParser) -> None:
+    """The map, BRDF and order arguments `submit` and `plan` share."""
+    p.add_argument("envmap", help="a file (uploaded first) or an environment-map id")
+    p.add_argument("--brdf", required=True, help="phong:s=32, a JSON spec file, or a BRDF id")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--epsilon", type=float)
+    g.add_argument("--order", type=int)
+    p.add_argument("--p-order", type=int, help="view order P for SHRMs (with --order)")
+    p.add_argument("--size", type=int)
+
+
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--server", default=os.environ.get("RELIGHT_SERVER", "http://127.0.0.1:8000"),
                    help="service URL (default $RELIGHT_SERVER or http://127.0.0.1:8000)")
@@ -170,13 +181,7 @@ def register(sub: Any) -> None:
     p.set_defaults(func=_guard(cmd_upload))
 
     p = sub.add_parser("submit", help="submit a prefiltering job to the service")
-    p.add_argument("envmap", help="a file (uploaded first) or an environment-map id")
-    p.add_argument("--brdf", required=True, help="phong:s=32, a JSON spec file, or a BRDF id")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--epsilon", type=float)
-    g.add_argument("--order", type=int)
-    p.add_argument("--p-order", type=int, help="view order P for SHRMs (with --order)")
-    p.add_argument("--size", type=int)
+    _add_job_args(p)
     p.add_argument("--sun", default="keep", help="extract (prefilter without the sun; the result's input.sun holds "
                    "it), clamp=V or keep (default)")
     p.add_argument("--wait", action="store_true", help="follow progress until the job ends")
@@ -186,13 +191,7 @@ def register(sub: Any) -> None:
     p.set_defaults(func=_guard(cmd_submit))
 
     p = sub.add_parser("plan", help="plan a prefiltering job on the service without computing it")
-    p.add_argument("envmap", help="a file (uploaded first) or an environment-map id")
-    p.add_argument("--brdf", required=True, help="phong:s=32, a JSON spec file, or a BRDF id")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--epsilon", type=float)
-    g.add_argument("--order", type=int)
-    p.add_argument("--p-order", type=int, help="view order P for SHRMs (with --order)")
-    p.add_argument("--size", type=int)
+    _add_job_args(p)
     p.add_argument("--sun", default="keep", help="extract (with --epsilon: each lobe's order with and without the "
                    "sun), clamp=V or keep (default)")
     _add_common(p)
