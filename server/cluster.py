@@ -28,6 +28,7 @@ import dask
 from distributed import Client, LocalCluster
 
 from relight.server.config import Settings
+from relight.worker.slots import task_options, worker_options
 
 log = logging.getLogger("relight.server")
 
@@ -70,10 +71,14 @@ class Cluster:
             )
         else:
             local: Any = LocalCluster
+            slots = worker_options(s.threads_per_worker)
             with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
                 self.local = await local(
                     n_workers=s.n_workers,
-                    threads_per_worker=s.threads_per_worker,
+                    # job slots + one thread for interactive tasks (LocalCluster's name for nthreads is
+                    # threads_per_worker: an nthreads keyword would be overwritten)
+                    threads_per_worker=slots["nthreads"],
+                    resources=slots["resources"],
                     processes=True,
                     host="127.0.0.1",
                     dashboard_address=None,
@@ -91,14 +96,16 @@ class Cluster:
     def subscribe(self, topic: str, handler: Callable[[Any], None]) -> None:
         self.client.subscribe_topic(topic, handler)
 
-    def submit(self, fn: Callable[..., Any], *args: Any, key: str, **kwargs: Any) -> Any:
+    def submit(self, fn: Callable[..., Any], *args: Any, key: str, job: bool = False, **kwargs: Any) -> Any:
         """A ``distributed.Future`` (awaitable) for ``fn(*args, **kwargs)`` under ``key``; ``fn`` must be defined in
-        ``relight.worker`` (TypeError otherwise)."""
+        ``relight.worker`` (TypeError otherwise). ``job``: a job task, which takes one of a worker's job slots;
+        otherwise an interactive one, which runs ahead of queued jobs on the thread kept free of them
+        (:mod:`relight.worker.slots`)."""
         module = getattr(fn, "__module__", None) or ""
         if module != WORKER_PACKAGE and not module.startswith(WORKER_PACKAGE + "."):
             raise TypeError(f"{getattr(fn, '__qualname__', fn)!r} of {module or 'no module'!r} is not a task of "
                             f"{WORKER_PACKAGE}: Dask callables live in worker/ (wrap the core function there)")
-        return self.client.submit(fn, *args, key=key, pure=False, retries=0, **kwargs)
+        return self.client.submit(fn, *args, key=key, pure=False, retries=0, **task_options(job=job), **kwargs)
 
     async def cancel(self, future: Any) -> None:
         await self.client.cancel([future], force=True)

@@ -29,7 +29,8 @@ class Settings(BaseSettings):
     tls_cert: Path | None = Field(None, description="scale-out: this server's certificate for the scheduler")
     tls_key: Path | None = Field(None, description="scale-out: its private key")
     n_workers: int = Field(2, ge=1, description="embedded cluster: worker processes")
-    threads_per_worker: int = Field(1, ge=1)
+    threads_per_worker: int = Field(1, ge=1, description="embedded cluster: jobs each worker runs at once (its "
+                                    "job slots; one more thread serves interactive requests)")
     worker_memory_limit: str = Field("4GiB", description="embedded cluster: memory limit per worker process")
 
     max_upload_bytes: int = Field(256 * MiB, ge=1, description="largest file body (uploads)")

@@ -114,7 +114,8 @@ def register(sub: Any) -> None:
 
     p = sub.add_parser("worker", help="run a Dask worker for the service (scale-out; no HTTP endpoint)")
     p.add_argument("--scheduler", required=True, help="tls://host:8786 (tcp://host:8786 without TLS files)")
-    p.add_argument("--nthreads", type=int, default=1)
+    p.add_argument("--nthreads", type=int, default=1,
+                   help="jobs run at once (job slots); the worker has one thread more, for interactive requests")
     p.add_argument("--name")
     p.add_argument("--memory-limit", default="auto")
     p.add_argument("--host", default=None, help="interface to listen on (default: Dask's choice)")

@@ -43,9 +43,11 @@ async def _serve(scheduler: str, *, nthreads: int, name: str | None, memory_limi
                  host: str | None, tls: TlsFiles | None) -> None:
     from distributed import Nanny, Worker
 
+    from relight.worker.slots import worker_options
+
     _tls_scheme(scheduler, tls)
     cls: Any = Nanny if nanny else Worker
-    kwargs: dict[str, Any] = {"nthreads": nthreads, "memory_limit": memory_limit, "dashboard": False,
+    kwargs: dict[str, Any] = {**worker_options(nthreads), "memory_limit": memory_limit, "dashboard": False,
                               "dashboard_address": HTTP_UNTIL_STOPPED, "preload": ["relight.worker.preload"]}
     if name:
         kwargs["name"] = name

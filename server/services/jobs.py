@@ -239,7 +239,7 @@ class JobService(JobTable):
             payload = {"job_id": job_id, "submission": row.submissions, "request": row.request,
                        "max_pixels": self.settings.max_pixels, "test_delay_s": self.settings.test_job_delay_s}
             fut = self.cluster.submit(run_job, kind.task, str(self.store.root), payload,
-                                      key=f"relight-{kind.name}-{job_id}-{row.submissions}")
+                                      key=f"relight-{kind.name}-{job_id}-{row.submissions}", job=True)
             self._futures[job_id] = fut
             self.metrics.inc("job_submissions_total")
             return fut
