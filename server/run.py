@@ -1,8 +1,14 @@
-"""Run the server with uvicorn on a socket bound here (so ``--port 0`` works and the URL is known)."""
+"""Run the server with uvicorn on a socket bound here (so ``--port 0`` works and the URL is known).
+
+For an operator looking at a server that hangs: ``kill -USR1 PID`` writes every thread's stack to stderr
+(:mod:`faulthandler`), ``kill -USR2 PID`` every pending asyncio task's stack (what each request is awaiting).
+"""
 
 from __future__ import annotations
 
 import asyncio
+import faulthandler
+import signal
 import socket
 import sys
 from types import FrameType
@@ -31,6 +37,15 @@ class RelightServer(uvicorn.Server):
             loop.call_soon_threadsafe(callback)  # a signal handler runs between bytecodes: hand it to the loop
 
 
+def dump_tasks() -> None:
+    """Every pending asyncio task of the running loop and where it waits, to stderr."""
+    tasks = asyncio.all_tasks()
+    print(f"relight: {len(tasks)} asyncio tasks", file=sys.stderr, flush=True)
+    for task in tasks:
+        task.print_stack(limit=12, file=sys.stderr)
+    sys.stderr.flush()
+
+
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None:
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
@@ -42,10 +57,13 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None
 
     def ready(app: FastAPI) -> None:
         services = app.state.services
-        server.on_exit.append((asyncio.get_running_loop(), services.hub.close))
+        loop = asyncio.get_running_loop()
+        server.on_exit.append((loop, services.hub.close))
+        loop.add_signal_handler(signal.SIGUSR2, dump_tasks)
         print(f"relight: serving {url} (data {settings.data_dir.resolve()}, Dask {services.cluster.address})",
               flush=True)
 
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     app = create_app(settings, on_ready=ready)
     config = uvicorn.Config(app, log_level=settings.log_level.lower() if settings.log_level else "info",
                             access_log=False, lifespan="on", timeout_graceful_shutdown=5,

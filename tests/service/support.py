@@ -91,6 +91,15 @@ class Proc:
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
+    def dump_stacks(self) -> None:
+        """Ask a running server to write its threads' and asyncio tasks' stacks into its log
+        (:mod:`relight.server.run`: SIGUSR1, SIGUSR2), for a test that found it hanging."""
+        if not self.alive():
+            return
+        for sig in (signal.SIGUSR1, signal.SIGUSR2):
+            os.kill(self.pid, sig)
+            time.sleep(1.0)
+
     def kill(self) -> None:
         """SIGKILL the whole process group (the server and the worker processes it spawned)."""
         if self.proc is None:

@@ -32,6 +32,7 @@ from typing import Any
 
 import httpx
 import pytest
+import requests
 import schemathesis
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
@@ -219,7 +220,7 @@ def test_uploads_and_jobs_reach_the_parsers(fuzz_schema: schemathesis.BaseSchema
 
 
 @pytest.mark.timeout(600)
-def test_stateful_links(fuzz_schema: schemathesis.BaseSchema) -> None:
+def test_stateful_links(fuzz_schema: schemathesis.BaseSchema, keyed: Server) -> None:
     seen: Counter[tuple[str, str, int]] = Counter()
     server_errors: list[str] = []
     scenarios = [0]
@@ -230,7 +231,12 @@ def test_stateful_links(fuzz_schema: schemathesis.BaseSchema) -> None:
             scenarios[0] += 1
 
         def call(self, case: Any, **kwargs: Any) -> Any:
-            response = case.call(**kwargs)
+            try:
+                response = case.call(**kwargs)
+            except requests.Timeout:  # the server's stacks (threads, asyncio tasks) say what it waits for
+                keyed.dump_stacks()
+                raise AssertionError(f"{case.method} {case.formatted_path}: no answer within the client's timeout; "
+                                     f"server log:\n{keyed.output()[-20000:]}") from None
             seen[(case.method.upper(), case.path, response.status_code)] += 1
             if response.status_code >= 500:  # kept even if hypothesis later calls the failure flaky
                 server_errors.append(f"{case.method} {case.formatted_path} -> {response.status_code}: "
