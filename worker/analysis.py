@@ -134,17 +134,18 @@ def _add_prt(store: BlobStore, plan: Any, tmp: Path, entry: ObjectResult,
 
 
 def _add_job_textures(store: BlobStore, plan: Any, tmp: Path, run: Any, files: dict[str, dict[str, Any]]) -> Any:
-    """The viewer's form of a planned in-out transport (for the plan's mesh) or SH table
+    """The viewer's form of a planned in-out transport or shadow-matrix transfer (for the plan's mesh) or SH table
     (``relight.worker.scene_prt``); other runs as they are."""
-    from relight.worker.scene_prt import add_inout_textures, add_table_texture
+    from relight.worker.scene_prt import add_inout_textures, add_matrix_texture, add_table_texture
 
-    if not run.executed or run.kind not in ("inout_transport", "sh_table"):
+    if not run.executed or run.kind not in ("inout_transport", "sh_table", "shadow_matrix"):
         return run
     npz = (tmp / next(f for f in run.files if f.endswith(".npz"))).read_bytes()
     if run.kind == "sh_table":
         return add_table_texture(store, npz, run, files)
     job = next(j for j in plan.report.jobs if j.id == run.id)
-    return add_inout_textures(store, npz, plan.meshes[job.params["mesh"]], run, files)
+    add = add_inout_textures if run.kind == "inout_transport" else add_matrix_texture
+    return add(store, npz, plan.meshes[job.params["mesh"]], run, files)
 
 
 def _add_texture(store: BlobStore, shrm_path: Path, entry: ObjectResult,

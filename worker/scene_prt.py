@@ -23,6 +23,15 @@ A planned ``sh_table`` job (seed 003, one per anisotropic material and order) ha
 job kind stores it (``relight.worker.sh_tables``): ``P.table.bin`` (little-endian float16 ``[(F+1)^2, R, R, C]``,
 values beyond 65504 clamped and counted) and ``P.table.json`` (the table's manifest: order, layout, resolution, ...,
 with ``files["table.bin"]``: name, shape, dtype, ``float16_clamped``).
+
+A planned ``shadow_matrix`` job (seed 003 §5, shared by the objects on one mesh at one order) has its world-frame
+transfer matrices ``T_p`` in ``P.npz``; :func:`add_matrix_texture` stores what the scene's PrtMatrixPart
+(``web/src/scene_table_parts.js``) reads, in the layout of the ``visibility`` job kind's ``shadow_matrix.bin``
+(``relight.worker.visibility_results``, read by ``web/src/sh_table_data.js`` transferLayout):
+``P.shadow_matrix.bin`` (float16 RGBA vertex texture, ``ceil(n^2 / 4)`` texels per vertex, each n x n matrix
+row-major), ``P.geometry.bin`` (the plan's mesh: canonical vertex order, so ``gl_VertexID`` indexes the texture) and
+``P.prt_matrix.json`` (the job's summary: order, rays, vertices, ..., with ``files["shadow_matrix.bin"]`` and its
+``texture`` layout, ``geometry``, ``bounds`` and ``bounding_radius``).
 """
 
 from __future__ import annotations
@@ -136,4 +145,36 @@ def add_table_texture(store: BlobStore, npz: bytes, run: JobRun, files: dict[str
                                         "byte_order": "little", "shape": list(data.shape),
                                         "order": "coefficient, row, column, channel", "float16_clamped": clamped}}}
     _put(store, files, names["table.json"], canonical_json(manifest), "application/json")
+    return dataclasses.replace(run, files=[*run.files, *names.values()])
+
+
+def add_matrix_texture(store: BlobStore, npz: bytes, mesh: Any, run: JobRun,
+                       files: dict[str, dict[str, Any]]) -> JobRun:
+    """Store the viewer's files for one ``shadow_matrix`` job (module docstring): ``npz`` is its ``P.npz``,
+    ``mesh`` the plan's mesh it was computed for. Adds them to ``files`` and returns the run listing them too."""
+    from relight.mesh import geometry
+    from relight.vertex_texture import pack_float16
+    from relight.worker.results import canonical_json
+
+    stem = next(f for f in run.files if f.endswith(".npz"))[: -len(".npz")]
+    with np.load(io.BytesIO(npz), allow_pickle=False) as z:
+        matrices = np.asarray(z["shadow_matrix"], dtype=np.float32)
+        positions = np.asarray(z["positions"], dtype=np.float64)
+        summary = json.loads(str(z["manifest"]))
+    if matrices.shape[0] != mesh.n_vertices or not np.allclose(positions, mesh.positions, atol=1e-5, rtol=1e-6):
+        raise ValueError(f"planned job {run.id}: its transfer matrices do not belong to the plan's mesh")
+    blob, lay = geometry.to_bytes(mesh)
+    names = {k: f"{stem}.{k}" for k in ("geometry.bin", "shadow_matrix.bin", "prt_matrix.json")}
+    digest = _put(store, files, names["geometry.bin"], blob)
+    tex, layout = pack_float16(matrices)
+    data = np.ascontiguousarray(tex).astype("<f2", copy=False).tobytes()
+    matrix_digest = _put(store, files, names["shadow_matrix.bin"], data)
+    keep = ("kind", "order", "coefficients", "rays", "seed", "vertices", "basis", "monte_carlo_error_rms")
+    manifest = {**{k: summary[k] for k in keep if k in summary}, "format": "relight.scene-prt-matrix",
+                "format_version": MANIFEST_VERSION, "job": run.id,
+                "geometry": {"sha256": digest, "name": names["geometry.bin"], **lay}, **_placement(mesh),
+                "files": {"shadow_matrix.bin": {"name": names["shadow_matrix.bin"], "sha256": matrix_digest,
+                                                "bytes": len(data), "dtype": "float16", "byte_order": "little",
+                                                "texture": layout}}}
+    _put(store, files, names["prt_matrix.json"], canonical_json(manifest), "application/json")
     return dataclasses.replace(run, files=[*run.files, *names.values()])

@@ -65,7 +65,7 @@ export function objectPosition(o) {
 /** Representations drawn by the object's SHRM (seed 000: the run synthesises their lobes into one SHRM). */
 export const SHRM_REPRESENTATIONS = ['irradiance', 'reflection_map', 'shrm_q0', 'shrm'];
 /** Representations drawn by a part of their own (scene_parts.js). */
-export const PART_REPRESENTATIONS = ['gaussian_lobes', 'diffuse_transfer', 'inout_prt', 'sh_table'];
+export const PART_REPRESENTATIONS = ['gaussian_lobes', 'diffuse_transfer', 'inout_prt', 'sh_table', 'prt_matrix'];
 
 const json = (bytes) => JSON.parse(new TextDecoder().decode(bytes));
 
@@ -127,26 +127,37 @@ async function gaussianItem(pub, api, rep, base, loaders) {
 }
 
 async function inoutItem(pub, api, rep, base) {
-  const run = (pub.result?.jobs || []).find((j) => rep.jobs.includes(j.id) && j.kind === 'inout_transport');
-  const file = run?.executed && run.files.find((f) => f.endsWith('.inout.json'));
-  if (!file) {
-    throw new Error(`scene object ${base.name}: its in-out PRT has no inout_transport job run with a viewer form`);
-  }
-  const inout = json(await api.sceneFile(pub.id, file));
+  const inout = json(await api.sceneFile(pub.id, viewerRun(pub, rep, base.name, 'inout_transport', '.inout.json',
+    'in-out PRT')));
   const [geometryBuffer, transportBuffer, factorsBuffer] = await Promise.all([inout.geometry.name,
     inout.transport_texture.name, inout.factors_texture.name].map((name) => api.sceneFile(pub.id, name)));
   return { ...base, kind: 'inout_prt', inout, geometryBuffer, transportBuffer, factorsBuffer };
 }
 
-async function tableItem(pub, api, rep, base, tangent) {
-  const run = (pub.result?.jobs || []).find((j) => rep.jobs.includes(j.id) && j.kind === 'sh_table');
-  const file = run?.executed && run.files.find((f) => f.endsWith('.table.json'));
+/** A job run of a lobe's representation (its `kind`) that wrote a viewer form (a file ending in `suffix`). */
+function viewerRun(pub, rep, name, kind, suffix, what) {
+  const run = (pub.result?.jobs || []).find((j) => rep.jobs.includes(j.id) && j.kind === kind);
+  const file = run?.executed && run.files.find((f) => f.endsWith(suffix));
   if (!file) {
-    throw new Error(`scene object ${base.name}: its SH table has no sh_table job run with a viewer form`);
+    throw new Error(`scene object ${name}: its ${what} has no ${kind} job run with a viewer form`);
   }
-  const table = json(await api.sceneFile(pub.id, file));
+  return file;
+}
+
+async function tableItem(pub, api, rep, base, tangent) {
+  const table = json(await api.sceneFile(pub.id, viewerRun(pub, rep, base.name, 'sh_table', '.table.json',
+    'SH table')));
   const tableBuffer = await api.sceneFile(pub.id, table.files['table.bin'].name);
   return { ...base, kind: 'sh_table', table, tableBuffer, tangent: tangent || null };
+}
+
+async function matrixItem(pub, api, rep, base, tangent) {
+  const file = viewerRun(pub, rep, base.name, 'shadow_matrix', '.prt_matrix.json', 'PRT (transfer matrices)');
+  const [table, matrices] = await Promise.all([tableItem(pub, api, rep, base, tangent),
+    api.sceneFile(pub.id, file).then(json)]);
+  const [geometryBuffer, matrixBuffer] = await Promise.all([matrices.geometry.name,
+    matrices.files['shadow_matrix.bin'].name].map((name) => api.sceneFile(pub.id, name)));
+  return { ...table, kind: 'prt_matrix', matrices, geometryBuffer, matrixBuffer };
 }
 
 /**
@@ -156,10 +167,13 @@ async function tableItem(pub, api, rep, base, tangent) {
  * viewer), 'gaussian_lobes' (each such lobe: its fit and the plan's chain, through `loaders.material` and
  * `loaders.chain`: gaussian_panel.js's materialFromLobes, gaussian.js's chainFromLevels), 'diffuse_transfer'
  * (the object's {name}.prt.json, geometry and transfer texture) and 'inout_prt' (each such lobe: its
- * inout_transport job's P.inout.json, geometry, transport and factors) and 'sh_table' (each such lobe: its sh_table
- * job's P.table.json and float16 table, the object's tangent field). An object's items after its first are `added`.
- * Returns {items, errors}: an object with a representation the viewer cannot draw, or whose files are missing, is
- * left out with its error ({name, message}); the others are drawn.
+ * inout_transport job's P.inout.json, geometry, transport and factors), 'sh_table' (each such lobe: its sh_table
+ * job's P.table.json and float16 table, the object's tangent field) and 'prt_matrix' (each such lobe: that table
+ * and its shadow_matrix job's P.prt_matrix.json, geometry and float16 world-frame transfer matrices). An object's
+ * items after its first are `added`.
+ * Returns {items, errors}: an object with a representation the viewer cannot draw, or whose files are missing or
+ * refused by the API (the problem's title, status and detail), is left out with its error ({name, message}); the
+ * others are drawn.
  */
 export async function sceneItems(pub, api, loadShape, loaders) {
   if (pub?.state !== 'succeeded') {
@@ -198,11 +212,15 @@ export async function sceneItems(pub, api, loadShape, loaders) {
           parts.push(inoutItem(pub, api, rep, base));
         } else if (rep.representation === 'sh_table') {
           parts.push(tableItem(pub, api, rep, base, o.tangent));
+        } else if (rep.representation === 'prt_matrix') {
+          parts.push(matrixItem(pub, api, rep, base, o.tangent));
         }
       }
       return { items: (await Promise.all(parts)).map((it, k) => ({ ...it, added: k > 0 })) };
     } catch (err) {
-      return { error: { name: o.name, message: err.message || String(err) } };
+      // an API answer's problem (ApiError.display: title, status, the server's detail), else the error's text
+      const message = typeof err?.display === 'function' ? err.display() : err?.message || String(err);
+      return { error: { name: o.name, message } };
     }
   }));
   return { items: done.flatMap((d) => d.items || []), errors: done.filter((d) => d.error).map((d) => d.error) };

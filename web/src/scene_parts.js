@@ -9,29 +9,21 @@
 //    mode: albedo T . L per vertex), placed at the object's centre and radius.
 //  - InOutPart: seed 004's in-out PRT of a glossy mesh with shadows (inout_object.js's InOutObject on the plan's
 //    shared inout_transport job: K terms, view and lighting dynamic), placed likewise.
-//  - ShTablePart: seed 003's per-view SH table of an anisotropic lobe (sh_table.vert.glsl in its 'general' mode,
-//    the GLSL of sh_table.js's SHTableGL and relight.gl.sh_table: per vertex the lighting rotated into the vertex's
-//    tangent frame, dotted with the table's coefficients at the local view), on the plan's shared sh_table job;
-//    the tangent field is the object's (sh_lights.js tangentField), the environment's rotation turns the lighting.
+//  - ShTablePart, PrtMatrixPart: seed 003's SH tables without and with shadows (scene_table_parts.js).
 // An object whose lobes have several representations is several parts: the first opaque, the others added
 // (additive blending on the same geometry, drawn where the first part's depth is).
 import * as THREE from 'three';
 
 import { gaussianDefines, lobeTexels, packLobes } from './gaussian.js';
 import { InOutObject } from './inout_object.js';
-import { projectLatlongHalf, rotateLightingY } from './prt.js';
 import { PrtObject } from './prt_object.js';
 import { build } from './shaders.js';
-import { shCount } from './sh.js';
-import { tangentField } from './sh_lights.js';
-import { shaderDefines } from './sh_table.js';
-import { latlongHalfTexture, objectViewDirection, withShaderAttributes } from './shrm_object.js';
+import { additive, Part, partGeometry } from './scene_part_base.js';
+import { PrtMatrixPart, ShTablePart } from './scene_table_parts.js';
+import { latlongHalfTexture, objectViewDirection } from './shrm_object.js';
 
-/** The viewer's geometry for a part: a tessellated unit sphere (normals exact at the vertices) or the mesh. */
-export function partGeometry(geometry) {
-  return withShaderAttributes(geometry === 'sphere' || geometry === 'sphere-mesh' || !geometry ? new THREE.SphereGeometry(1, 128, 64)
-    : geometry.clone());
-}
+export { partGeometry } from './scene_part_base.js';
+export { PrtMatrixPart, ShTablePart, tableRgba } from './scene_table_parts.js';
 
 /** gaussian.glsl's u_lobes: the material's lobes packed (gaussian.js packLobes), one row per elevation. */
 function lobeTexture(material) {
@@ -46,34 +38,6 @@ function lobeTexture(material) {
   tex.flipY = false;
   tex.needsUpdate = true;
   return tex;
-}
-
-/** Make a part's material the added one of a several-part object (see the module comment). */
-function additive(material) {
-  material.blending = THREE.AdditiveBlending;
-  material.depthFunc = THREE.LessEqualDepth;
-  material.depthWrite = false;
-  return material;
-}
-
-class Part {
-  constructor(viewer, { name, center, radius, shape }) {
-    if (!(radius > 0) || !Number.isFinite(radius) || !center.every(Number.isFinite)) {
-      throw new RangeError(`object ${name}: needs a finite centre and a positive radius`);
-    }
-    this.viewer = viewer;
-    this.name = name;
-    this.center = new THREE.Vector3(...center);
-    this.radius = radius;
-    this.mode = 'distant';
-    this.shape = shape;
-  }
-
-  renderViewMap() {
-    return false;
-  }
-
-  updateMaterial() {}
 }
 
 export class GaussianPart extends Part {
@@ -240,124 +204,6 @@ export class InOutPart extends Part {
   }
 }
 
-/**
- * A scene sh_table job's table.bin (float16 [(F+1)^2, R, R, C], C = 1 or 3) as RGBA float16 texels, layer-major:
- * the layers of sh_table.vert.glsl's u_table (alpha unused).
- */
-export function tableRgba(half, manifest) {
-  const [n, rows, cols, channels] = manifest.files['table.bin'].shape;
-  if (half.length !== n * rows * cols * channels || (channels !== 1 && channels !== 3)) {
-    throw new Error(`SH table data holds ${half.length} values, expected ${n} x ${rows} x ${cols} x (1 or 3)`);
-  }
-  const texels = n * rows * cols;
-  const out = new Uint16Array(4 * texels);
-  for (let k = 0; k < texels; k += 1) {
-    for (let c = 0; c < 3; c += 1) {
-      out[4 * k + c] = half[channels * k + (channels === 3 ? c : 0)];
-    }
-  }
-  return out;
-}
-
-export class ShTablePart extends Part {
-  /**
-   * @param item {name, center, radius, shape, geometry, table (the job's P.table.json), tableBuffer, tangent (the
-   *   object's tangent spec, sh_lights.js tangentField's; default azimuthal about +Y), added}
-   */
-  constructor(viewer, item) {
-    super(viewer, item);
-    this.representation = 'sh_table';
-    const { table } = item;
-    this.order = table.order;
-    const [n, rows, cols] = table.files['table.bin'].shape;
-    if (n !== shCount(this.order) || rows !== table.resolution || cols !== table.resolution) {
-      throw new Error(`object ${item.name}: its SH table's shape does not match order ${this.order}`);
-    }
-    const tex = new THREE.DataArrayTexture(tableRgba(new Uint16Array(item.tableBuffer), table), cols, rows, n);
-    tex.type = THREE.HalfFloatType;
-    tex.format = THREE.RGBAFormat;
-    tex.internalFormat = 'RGBA16F';
-    tex.minFilter = THREE.LinearFilter; // bilinear over the view map, clamped (sh_table.js SHTableGL)
-    tex.magFilter = THREE.LinearFilter;
-    tex.wrapS = THREE.ClampToEdgeWrapping;
-    tex.wrapT = THREE.ClampToEdgeWrapping;
-    tex.generateMipmaps = false;
-    tex.flipY = false;
-    tex.needsUpdate = true;
-    this.texture = tex;
-    const shared = viewer.uniforms;
-    this.uniforms = {
-      u_view_projection: { value: new THREE.Matrix4() }, // the viewer's times this part's placement (prepare)
-      u_exposure: shared.u_exposure,
-      u_tonemap: shared.u_tonemap,
-      u_view: { value: new THREE.Vector3(0, 0, 1) },
-      u_light: { value: [] },
-      u_table: { value: tex },
-    };
-    this.lighting = null;
-    this.layout = table.layout;
-    this.added = !!item.added;
-    this._materials = new Map();
-    const geometry = partGeometry(item.geometry);
-    const normals = geometry.getAttribute('normal').array;
-    geometry.setAttribute('a_tangent', new THREE.BufferAttribute(tangentField(normals, item.tangent
-      || { kind: 'azimuthal' }), 4));
-    this.mesh = new THREE.Mesh(geometry, this.material('display'));
-    this.mesh.name = item.name;
-    this.mesh.frustumCulled = false; // placed by u_view_projection, not three.js's object matrix
-    this.mesh.renderOrder = this.added ? 1 : 0;
-  }
-
-  /** 'display' (tonemapped, the canvas) or 'linear' (radiance, float targets). */
-  material(output) {
-    if (!this._materials.has(output)) {
-      const defines = shaderDefines(this.order, this.layout, 'general');
-      const body = (name, defs) => build(name, { defines: defs, read: this.viewer.read })
-        .replace(/^#version 300 es\n/, '');
-      const m = new THREE.RawShaderMaterial({ vertexShader: body('sh_table.vert.glsl', defines),
-        fragmentShader: body('sh_table.frag.glsl', output === 'linear' ? { OUTPUT_LINEAR: null } : {}),
-        uniforms: this.uniforms, glslVersion: THREE.GLSL3 });
-      this._materials.set(output, this.added ? additive(m) : m);
-    }
-    return this._materials.get(output);
-  }
-
-  /** Project the viewer's current environment (its float16 lat-long) to the table's order. */
-  updateMaterial() {
-    const env = this.viewer.environment;
-    this.lighting = env ? projectLatlongHalf(env.halfRgb, env.height, env.width, this.order) : null;
-  }
-
-  /** Per frame: placement, the lighting turned with the environment (as PrtPart), the view from the centre. */
-  prepare(camera, rotation) {
-    if (!this.lighting) {
-      this.updateMaterial();
-    }
-    const model = new THREE.Matrix4().makeScale(this.radius, this.radius, this.radius).setPosition(this.center);
-    this.uniforms.u_view_projection.value.multiplyMatrices(this.viewer.uniforms.u_view_projection.value, model);
-    this.uniforms.u_view.value.set(...objectViewDirection(this.viewer, this.center, camera)).normalize();
-    const light = this.uniforms.u_light.value;
-    const n = shCount(this.order);
-    const rot = this.lighting ? rotateLightingY(this.lighting, this.order, -rotation) : new Float64Array(3 * n);
-    light.length = n;
-    for (let k = 0; k < n; k += 1) {
-      light[k] = (light[k] || new THREE.Vector3()).set(rot[3 * k], rot[3 * k + 1], rot[3 * k + 2]);
-    }
-  }
-
-  /** The lighting of the last prepare() (n x 3 floats, for tests). */
-  currentLighting() {
-    return this.uniforms.u_light.value.map((v) => [v.x, v.y, v.z]);
-  }
-
-  dispose() {
-    this._materials.forEach((m) => m.dispose());
-    this.texture.dispose();
-    this.mesh.geometry.dispose();
-    this.mesh.removeFromParent();
-  }
-}
-
 /** The part of one scene item (sceneItems in scene.js): by its representation. */
 export function makePart(viewer, item) {
   if (item.kind === 'gaussian_lobes') {
@@ -371,6 +217,9 @@ export function makePart(viewer, item) {
   }
   if (item.kind === 'sh_table') {
     return new ShTablePart(viewer, item);
+  }
+  if (item.kind === 'prt_matrix') {
+    return new PrtMatrixPart(viewer, item);
   }
   throw new Error(`scene object ${item.name}: no part for representation ${item.kind}`);
 }

@@ -3,6 +3,7 @@
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
+import { ApiError } from '../src/api.js';
 import { chainFromLevels } from '../src/gaussian.js';
 import { sceneItems } from '../src/scene.js';
 
@@ -25,6 +26,9 @@ function scene(objects) {
     'job02-inout_transport.factors.bin': new ArrayBuffer(20),
     'job03-sh_table.table.json': enc({ order: 2, files: { 'table.bin': { name: 'job03-sh_table.table.bin' } } }),
     'job03-sh_table.table.bin': new ArrayBuffer(24),
+    'job04-shadow_matrix.prt_matrix.json': enc({ order: 2, geometry: { name: 'job04-shadow_matrix.geometry.bin' },
+      files: { 'shadow_matrix.bin': { name: 'job04-shadow_matrix.shadow_matrix.bin' } } }),
+    'job04-shadow_matrix.geometry.bin': new ArrayBuffer(28), 'job04-shadow_matrix.shadow_matrix.bin': new ArrayBuffer(32),
   };
   const fileOf = { ball: { texture: 'ball.texture.json', coefficients_bin: 'ball.coefficients.bin' },
     bunny: { prt: 'bunny.prt.json', texture: 'ball.texture.json', coefficients_bin: 'ball.coefficients.bin' } };
@@ -36,7 +40,8 @@ function scene(objects) {
     plan: { objects: objects.map(([name, reps]) => ({ name, viewer: 'distant', representations: reps.map((r) => ({
       kind: r === 'diffuse_transfer' ? 'lambert' : 'phong', representation: r, seed: '000',
       lobe: { kind: 'lambert', albedo: 0.5 },
-      jobs: { gaussian_lobes: ['fit', 'chain'], inout_prt: ['inout'], sh_table: ['table'] }[r] ?? [] })) })) },
+      jobs: { gaussian_lobes: ['fit', 'chain'], inout_prt: ['inout'], sh_table: ['table'],
+        prt_matrix: ['table', 'matrix'] }[r] ?? [] })) })) },
     result: {
       objects: objects.map(([name, , own]) => ({ name, files: own ?? fileOf[name] ?? {} })),
       jobs: [
@@ -51,18 +56,25 @@ function scene(objects) {
           'job02-inout_transport.transport.bin', 'job02-inout_transport.factors.bin'], summary: {} },
         { id: 'table', kind: 'sh_table', executed: true, files: ['job03-sh_table.npz', 'job03-sh_table.table.bin',
           'job03-sh_table.table.json'], summary: {} },
+        { id: 'matrix', kind: 'shadow_matrix', executed: true, files: ['job04-shadow_matrix.npz',
+          'job04-shadow_matrix.geometry.bin', 'job04-shadow_matrix.shadow_matrix.bin',
+          'job04-shadow_matrix.prt_matrix.json'], summary: {} },
       ],
     },
   };
   const fetched = [];
+  const refused = new Set();
   const api = { sceneFile: async (id, name) => {
     assert.equal(id, 's1');
     fetched.push(name);
+    if (refused.has(name)) {
+      throw new ApiError(404, { title: 'Not Found', detail: `scene s1 has no file '${name}'` });
+    }
     if (!(name in files)) throw new Error(`no file ${name}`);
     return files[name];
   } };
   const loaders = { material: (result, buffer) => ({ result, bytes: buffer.byteLength }), chain: chainFromLevels };
-  return { pub, api, loaders, fetched };
+  return { pub, api, loaders, fetched, refused };
 }
 
 const shape = async (name) => `geometry:${name}`;
@@ -109,12 +121,33 @@ test('an SH-table lobe reads its sh_table job\'s viewer files and the object\'s 
   assert.equal(items[1].tangent, null); // the part's default: azimuthal about +Y, as the CPU's
 });
 
+test('a PRT lobe (prt_matrix) reads its sh_table and shadow_matrix jobs\' viewer files', async () => {
+  const s = scene([['brushed', ['prt_matrix']]]);
+  const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
+  assert.deepEqual(errors, []);
+  assert.deepEqual(items.map((it) => [it.name, it.kind]), [['brushed', 'prt_matrix']]);
+  const [it] = items;
+  assert.equal(it.table.order, 2);
+  assert.equal(it.matrices.order, 2);
+  assert.deepEqual([it.tableBuffer, it.geometryBuffer, it.matrixBuffer].map((b) => b.byteLength), [24, 28, 32]);
+  assert.deepEqual(it.tangent, { kind: 'project', direction: [1, 0, 0] });
+});
+
 test('a representation the viewer cannot draw is that object\'s error; the others are drawn', async () => {
-  const s = scene([['ball', ['shrm']], ['teapot', ['prt_matrix']]]);
+  const s = scene([['ball', ['shrm']], ['teapot', ['photon_map']]]);
   const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
   assert.deepEqual(items.map((it) => it.name), ['ball']);
   assert.deepEqual(errors.map((e) => e.name), ['teapot']);
-  assert.match(errors[0].message, /cannot draw representation prt_matrix/);
+  assert.match(errors[0].message, /cannot draw representation photon_map/);
+});
+
+test('a file the API refuses is the object\'s error, with the problem\'s title, status and detail', async () => {
+  const s = scene([['ball', ['shrm']], ['brushed', ['prt_matrix']]]);
+  s.refused.add('job04-shadow_matrix.shadow_matrix.bin');
+  const { items, errors } = await sceneItems(s.pub, s.api, shape, s.loaders);
+  assert.deepEqual(items.map((it) => it.name), ['ball']);
+  assert.deepEqual(errors, [{ name: 'brushed',
+    message: "Not Found (404) — scene s1 has no file 'job04-shadow_matrix.shadow_matrix.bin'" }]);
 });
 
 test('an SH-table job without its viewer form is the object\'s error', async () => {
