@@ -15,10 +15,15 @@ export class ApiError extends Error {
     this.problem = problem || {};
   }
 
-  /** One line for the page: "Title: detail" and the per-field messages of a validation error. */
+  /**
+   * One line for the page: "Title (status) — detail" and the per-field messages of a validation error that the
+   * detail does not already hold (relight.server.problems writes each field's `field` and `message` into the
+   * detail too; other servers' entries may be pydantic's `loc` and `msg`).
+   */
   display() {
     const p = this.problem;
-    const fields = (p.errors || []).map((e) => `${(e.loc || []).join('.')}: ${e.msg}`).join('; ');
+    const fields = (p.errors || []).map((e) => `${e.field ?? (e.loc || []).join('.')}: ${e.message ?? e.msg}`)
+      .filter((f) => !String(p.detail || '').includes(f)).join('; ');
     const head = p.title ? `${p.title} (${this.status})` : `HTTP ${this.status}`;
     return [head, p.detail, fields].filter(Boolean).join(' — ');
   }
