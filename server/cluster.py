@@ -28,7 +28,7 @@ import dask
 from distributed import Client, LocalCluster
 
 from relight.server.config import Settings
-from relight.worker.slots import task_options, worker_options
+from relight.worker.slots import SCHEDULER_CONFIG, task_options, worker_options
 
 log = logging.getLogger("relight.server")
 
@@ -72,7 +72,7 @@ class Cluster:
         else:
             local: Any = LocalCluster
             slots = worker_options(s.threads_per_worker)
-            with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+            with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES, **SCHEDULER_CONFIG}):
                 self.local = await local(
                     n_workers=s.n_workers,
                     # job slots + one thread for interactive tasks (LocalCluster's name for nthreads is
@@ -119,6 +119,22 @@ class Cluster:
             await self.client.restart_workers([address], timeout=30, raise_for_error=False)
         except (OSError, TimeoutError, ValueError) as exc:
             log.warning("could not restart worker %s: %s", address, exc)
+
+    def describe(self) -> list[str]:
+        """The embedded scheduler's workers (status, threads, resources, tasks processing) and every task not yet in
+        memory (state, where it runs or waits), for an operator's dump (:func:`relight.server.run.dump_tasks`);
+        nothing for an external scheduler (ask it with ``dask`` tools)."""
+        if self.local is None:
+            return []
+        sched = self.local.scheduler
+        lines = [f"worker {ws.address} status={ws.status.name} nthreads={ws.nthreads} used={dict(ws.used_resources)}"
+                 f" processing={sorted(t.key for t in ws.processing)} memory={ws.memory.process >> 20} MiB"
+                 for ws in sched.workers.values()]
+        lines += [f"task {ts.key} state={ts.state} priority={ts.priority} "
+                  f"on={getattr(ts.processing_on, 'address', None)} resources={ts.resource_restrictions}"
+                  for ts in sched.tasks.values()
+                  if ts.state not in ("memory", "forgotten", "released", "erred")]
+        return lines
 
     async def close(self) -> None:
         if self._client is not None:

@@ -37,13 +37,28 @@ class RelightServer(uvicorn.Server):
             loop.call_soon_threadsafe(callback)  # a signal handler runs between bytecodes: hand it to the loop
 
 
-def dump_tasks() -> None:
-    """Every pending asyncio task of the running loop and where it waits, to stderr."""
+def _awaiting(coro: Any) -> list[str]:
+    """Where a suspended coroutine waits: the chain of coroutines it awaits, innermost last."""
+    where: list[str] = []
+    while coro is not None and len(where) < 40:
+        frame = getattr(coro, "cr_frame", None) or getattr(coro, "gi_frame", None)
+        if frame is not None:
+            where.append(f"  {frame.f_code.co_filename}:{frame.f_lineno} in {frame.f_code.co_name}")
+        coro = getattr(coro, "cr_await", None) or getattr(coro, "gi_yieldfrom", None)
+    return where
+
+
+def dump_tasks(cluster: Any = None) -> None:
+    """Every pending asyncio task of the running loop and the chain of awaits it is suspended in, then the embedded
+    Dask scheduler's workers and unfinished tasks, to stderr."""
     tasks = asyncio.all_tasks()
-    print(f"relight: {len(tasks)} asyncio tasks", file=sys.stderr, flush=True)
+    lines = [f"relight: {len(tasks)} asyncio tasks"]
     for task in tasks:
-        task.print_stack(limit=12, file=sys.stderr)
-    sys.stderr.flush()
+        lines.append(f"task {task.get_name()}:")
+        lines += _awaiting(task.get_coro())
+    if cluster is not None:
+        lines += ["relight: Dask scheduler", *cluster.describe()]
+    print("\n".join(lines), file=sys.stderr, flush=True)
 
 
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None:
@@ -59,7 +74,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000) -> None
         services = app.state.services
         loop = asyncio.get_running_loop()
         server.on_exit.append((loop, services.hub.close))
-        loop.add_signal_handler(signal.SIGUSR2, dump_tasks)
+        loop.add_signal_handler(signal.SIGUSR2, dump_tasks, services.cluster)
         print(f"relight: serving {url} (data {settings.data_dir.resolve()}, Dask {services.cluster.address})",
               flush=True)
 

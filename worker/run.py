@@ -68,14 +68,18 @@ def run_worker(scheduler: str, *, nthreads: int = 1, name: str | None = None, me
 
 
 async def _schedule(host: str, port: int, tls: TlsFiles | None) -> None:
+    import dask
     from distributed import Scheduler
+
+    from relight.worker.slots import SCHEDULER_CONFIG
 
     kwargs: dict[str, Any] = {"host": host, "port": port, "dashboard": False,
                               "dashboard_address": HTTP_UNTIL_STOPPED}
     if tls is not None:
         kwargs |= {"security": tls.security(), "protocol": "tls"}
     sched: Any = Scheduler
-    node = await sched(**kwargs)
+    with dask.config.set(SCHEDULER_CONFIG):  # read when the scheduler is made
+        node = await sched(**kwargs)
     http = getattr(node, "http_server", None)
     if http is not None:
         http.stop()

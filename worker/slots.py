@@ -8,7 +8,12 @@ client timeout seen in the stateful API fuzz run). So every worker has one threa
 * each worker declares the Dask resource :data:`JOB_RESOURCE` = its job slots (``--nthreads``, default 1), and
   every job task asks for one unit of it, so at most that many jobs run on a worker at once;
 * the extra thread is free of the resource: interactive tasks (submitted with :data:`INTERACTIVE_PRIORITY`, ahead
-  of any queued job) always find a thread, at the cost of sharing the CPU with the running jobs while they last.
+  of any queued job) always find a thread, at the cost of sharing the CPU with the running jobs while they last;
+* the scheduler does not hold tasks back (:data:`SCHEDULER_CONFIG`): Dask's default queues a task of a large group
+  with no dependencies (every upload decode is one of ``relight-analyze``) at the scheduler while every worker is
+  "saturated", and it counts the jobs waiting on a worker for its job slot as saturation. With more jobs than
+  slots an upload then waited, unscheduled, until jobs ended (seen in the stateful API fuzz run: an OBJ upload
+  ``queued`` with no worker for over 60 s while both workers' threads for interactive tasks were idle).
 """
 
 from __future__ import annotations
@@ -19,6 +24,8 @@ from typing import Any, Final
 JOB_RESOURCE: Final = "relight-job"
 #: Dask priority of interactive tasks (jobs keep the default 0; higher runs first).
 INTERACTIVE_PRIORITY: Final = 10
+#: Dask configuration of the scheduler (embedded or ``relight scheduler``): no scheduler-side queuing.
+SCHEDULER_CONFIG: Final = {"distributed.scheduler.worker-saturation": "inf"}
 
 
 def worker_options(job_slots: int) -> dict[str, Any]:
@@ -33,4 +40,4 @@ def task_options(*, job: bool) -> dict[str, Any]:
     return {"resources": {JOB_RESOURCE: 1}} if job else {"priority": INTERACTIVE_PRIORITY}
 
 
-__all__ = ["INTERACTIVE_PRIORITY", "JOB_RESOURCE", "task_options", "worker_options"]
+__all__ = ["INTERACTIVE_PRIORITY", "JOB_RESOURCE", "SCHEDULER_CONFIG", "task_options", "worker_options"]

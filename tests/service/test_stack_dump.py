@@ -19,7 +19,9 @@ def test_usr1_and_usr2_dump_stacks_and_the_server_keeps_serving(tmp_path_factory
         log = server.output()
         assert "Current thread" in log or "Thread 0x" in log, log[-2000:]  # faulthandler's all-thread dump
         assert "serve" in log  # the main thread is inside uvicorn's serve loop
-        assert "Stack for <Task" in log, log[-2000:]  # at least one pending task (the server's own)
+        assert "task relight-health:" in log, log[-2000:]  # the health monitor's task and where it waits
+        assert "in _loop" in log
+        assert "relight: Dask scheduler" in log and log.count("\nworker tls://") >= 2  # the embedded cluster's
         assert server.alive()
         assert httpx.get(f"{server.url}/health", timeout=30).status_code == 200
     finally:
