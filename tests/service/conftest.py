@@ -6,10 +6,15 @@ a file in the server's data directory) and once on PostgreSQL (Debian's ``postgr
 session by :mod:`tests.service.postgres`, one database per server data directory). It is a session-scoped
 parametrised fixture, so pytest runs the tests that use it on SQLite first and then on PostgreSQL (ids end in
 ``[sqlite]`` / ``[postgresql]``); a suite opts in by starting its servers with ``start_server(...,
-database=database)``: every route test (tests/service/routes/), and the suites where the job table is what is
-tested: resume after a kill and cancellation (test_resilience), the fault-injection kills, SIGTERM and resume
-(test_faults). ``RELIGHT_TEST_DATABASES=sqlite`` (or ``postgresql``) runs one of them only, for a quicker local
-run; CI runs both.
+database=database)``: every route test (tests/service/routes/), resume after a kill and cancellation
+(test_resilience), the fault-injection kills of the embedded and of the deployment-form cluster (scheduler killed),
+SIGTERM and resume (test_faults), the scale-out cluster (test_scale_out), and every reliability suite with a server
+of its own (test_reliability_*, test_client_retry, test_interactive_slots, test_envmap_streaming). One database
+each: test_reliability_postgres (PostgreSQL by construction: two servers on one database), the two schemathesis
+fuzz runs (test_openapi, test_openapi_stateful: their budget is minutes per run) and test_reliability_compute
+(the planning sandboxes, which read one envmap row: its server burns 20 CPU seconds per plan, about 3 minutes per
+leg on a loaded 2-core machine). ``RELIGHT_TEST_DATABASES=sqlite`` (or
+``postgresql``) runs one of them only, for a quicker local run; CI runs both.
 """
 
 from __future__ import annotations

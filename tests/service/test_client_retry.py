@@ -19,6 +19,7 @@ from relight.client.errors import ApiError
 from relight.client.sdk import RelightClient
 from relight.contract.models import JobState
 
+from .postgres import Backend
 from .support import exr_bytes, make_envmap, start_server
 
 JOB = {"id": "a" * 64, "kind": "shrm", "state": "queued", "stage": "queued", "progress": 0.0, "runs": 0,
@@ -74,9 +75,9 @@ def test_retrying_stops_at_its_limit_and_for_streamed_uploads() -> None:
 
 
 @pytest.mark.timeout(300)
-def test_a_full_cap_is_waited_out_by_the_sdk(tmp_path_factory: pytest.TempPathFactory) -> None:
+def test_a_full_cap_is_waited_out_by_the_sdk(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> None:
     data = tmp_path_factory.mktemp("retry")
-    server = start_server(data, {"RELIGHT_MAX_ACTIVE_JOBS": "2", "RELIGHT_TEST_JOB_DELAY_S": "1"})
+    server = start_server(data, {"RELIGHT_MAX_ACTIVE_JOBS": "2", "RELIGHT_TEST_JOB_DELAY_S": "1"}, database=database)
     try:
         with server.client() as c:
             env = c.upload_envmap(exr_bytes(make_envmap(32, seed=700), data))

@@ -19,6 +19,7 @@ from relight.sh9 import all_conventions
 from relight.worker.blobs import BlobStore
 from relight.worker.tasks import stored_rows, stream_memory_bound
 
+from .postgres import Backend
 from .support import Server, assert_healthy, assert_problem, start_server, wait_until
 
 pytestmark = pytest.mark.timeout(600)
@@ -29,11 +30,11 @@ SPECTRUM_LMAX = 256
 
 
 @pytest.fixture(scope="module")
-def big(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+def big(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[Server]:
     srv = start_server(tmp_path_factory.mktemp("bigmaps"), {
         "RELIGHT_MAX_PIXELS": str(MAX_PIXELS), "RELIGHT_MAX_STREAM_PIXELS": str(WIDTH * HEIGHT),
         "RELIGHT_MAX_UPLOAD_BYTES": str(96 << 20), "RELIGHT_DECODE_TIMEOUT_S": "500",
-        "RELIGHT_SPECTRUM_LMAX": str(SPECTRUM_LMAX)})
+        "RELIGHT_SPECTRUM_LMAX": str(SPECTRUM_LMAX)}, database=database)
     wait_until(lambda: len(psutil.Process(srv.pid).children()) >= 2, 60, "the Dask workers to start")
     yield srv
     srv.stop()

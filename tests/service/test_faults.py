@@ -234,11 +234,11 @@ def test_cancel_mid_computation_stops_the_worker(faulty: dict[str, object], data
 
 # ------------------------------------------------------------------------------------------------ scheduler
 @pytest.fixture(scope="module")
-def external(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, object]]:
+def external(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[dict[str, object]]:
     """A separately started scheduler and two ``relight worker`` processes (what a deployment supervises and
     restarts), and a server pointed at them: the documented deployment, every connection mutual TLS with the
     certificate of ``relight tls init`` (``relight scheduler --tls-*``, the workers and the server from the
-    ``RELIGHT_TLS_*`` environment), as in the compose file."""
+    ``RELIGHT_TLS_*`` environment), as in the compose file; the server's job table on ``database``."""
     tmp = tmp_path_factory.mktemp("faulty-external")
     faults = tmp_path_factory.mktemp("faults-external")
     port = free_port()
@@ -267,7 +267,7 @@ def external(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, obj
         procs["scheduler"] = start_scheduler()
         for i in range(2):
             procs[f"worker{i}"] = start_worker(i)
-        server = start_server(tmp / "server", {**env, **tls, "RELIGHT_SCHEDULER": address})
+        server = start_server(tmp / "server", {**env, **tls, "RELIGHT_SCHEDULER": address}, database=database)
         procs["server"] = server
         with server.client() as c:
             wait_until(lambda: c.health().workers == 2, 90, "both workers to join the scheduler", interval=0.2)
@@ -312,7 +312,8 @@ def test_scheduler_killed_at(point: str, external: dict[str, object], data_tmp: 
 SHUTDOWN_BOUND_S = 60.0
 
 
-def test_sigterm_with_running_jobs_of_every_kind(tmp_path_factory: pytest.TempPathFactory, data_tmp: Path) -> None:
+def test_sigterm_with_running_jobs_of_every_kind(tmp_path_factory: pytest.TempPathFactory, data_tmp: Path,
+                                                 database: Backend) -> None:
     """SIGTERM while an SHRM, a tradeoff sweep and a scene are running or queued (and an event stream is open):
     the server exits cleanly (status 0, no traceback, no process of its group left, no tmp debris) within
     SHUTDOWN_BOUND_S; the next server resumes all three and each finishes once."""
@@ -322,7 +323,7 @@ def test_sigterm_with_running_jobs_of_every_kind(tmp_path_factory: pytest.TempPa
 
     data = tmp_path_factory.mktemp("sigterm")
     # the jobs wait (TEST ONLY delay) far longer than the test takes to send SIGTERM: none can finish before it
-    server = start_server(data, {"RELIGHT_TEST_JOB_DELAY_S": "60"})
+    server = start_server(data, {"RELIGHT_TEST_JOB_DELAY_S": "60"}, database=database)
     with httpx.Client(base_url=server.url, timeout=60) as http:
         env = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=500), data_tmp)).json()["id"]
         ids = {kind: submit(http, kind, env, 7) for kind in KINDS}
@@ -349,7 +350,7 @@ def test_sigterm_with_running_jobs_of_every_kind(tmp_path_factory: pytest.TempPa
                                for p in group), 30, "the server's worker processes to exit")
     assert list((data / "blobs" / "tmp").iterdir()) == []
 
-    restarted = start_server(data, log_name="server2.log")
+    restarted = start_server(data, log_name="server2.log", database=database)
     try:
         with httpx.Client(base_url=restarted.url, timeout=60) as http:
             for kind, job_id in ids.items():

@@ -17,6 +17,7 @@ import httpx
 import numpy as np
 import pytest
 
+from .postgres import Backend
 from .routes.test_jobs_kinds import KINDS, submit
 from .support import exr_bytes, make_envmap, start_server, wait_until
 
@@ -26,8 +27,8 @@ OBJ = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n
 
 
 def test_uploads_and_textures_while_every_job_slot_is_busy(tmp_path_factory: pytest.TempPathFactory,
-                                                            data_tmp: Path) -> None:
-    server = start_server(tmp_path_factory.mktemp("slots"), {"RELIGHT_TEST_JOB_DELAY_S": "600"})
+                                                            data_tmp: Path, database: Backend) -> None:
+    server = start_server(tmp_path_factory.mktemp("slots"), {"RELIGHT_TEST_JOB_DELAY_S": "600"}, database=database)
     try:
         with httpx.Client(base_url=server.url, timeout=120) as http:
             env = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=501), data_tmp)).json()["id"]

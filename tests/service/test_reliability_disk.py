@@ -13,6 +13,7 @@ from pathlib import Path
 import httpx
 import pytest
 
+from .postgres import Backend
 from .support import Server, assert_problem, exr_bytes, fresh_health, make_envmap, start_server, wait_until
 
 pytestmark = pytest.mark.timeout(300)
@@ -24,7 +25,7 @@ MIN_FREE = 1 << 20
 
 
 @pytest.fixture(scope="module")
-def full(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, Path]]:
+def full(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[tuple[Server, Path]]:
     assert os.geteuid() == 0, "this test mounts a tmpfs: it runs as root (CI does)"
     root = tmp_path_factory.mktemp("disk")
     mount = root / "blobs"
@@ -34,7 +35,7 @@ def full(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, Pat
     server = None
     try:
         server = start_server(root / "data", {"RELIGHT_BLOB_DIR": str(mount),
-                                              "RELIGHT_MIN_FREE_BYTES": str(MIN_FREE)})
+                                              "RELIGHT_MIN_FREE_BYTES": str(MIN_FREE)}, database=database)
         yield server, mount
     finally:
         if server is not None:

@@ -19,6 +19,7 @@ import httpx
 import numpy as np
 import pytest
 
+from .postgres import Backend
 from .support import Server, assert_healthy, assert_problem, exr_bytes, make_envmap, start_server, wait_done
 
 pytestmark = pytest.mark.timeout(180)
@@ -33,11 +34,11 @@ UPLOAD_LIMIT = 40_000_000
 
 
 @pytest.fixture(scope="module")
-def guarded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+def guarded(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[Server]:
     srv = start_server(tmp_path_factory.mktemp("guarded"), {
         "RELIGHT_API_KEY_HASHES": hashlib.sha256(API_KEY.encode()).hexdigest(),
         "RELIGHT_MAX_JSON_BYTES": str(JSON_LIMIT), "RELIGHT_MAX_OUTPUT_BYTES": str(OUTPUT_LIMIT),
-        "RELIGHT_MAX_UPLOAD_BYTES": str(UPLOAD_LIMIT)})
+        "RELIGHT_MAX_UPLOAD_BYTES": str(UPLOAD_LIMIT)}, database=database)
     yield srv
     srv.stop()
 

@@ -26,6 +26,7 @@ import pytest
 from relight.worker.blobs import BlobStore
 from relight.worker.results import job_ref
 
+from .postgres import Backend
 from .routes.test_meshes import cube_obj
 from .support import Server, exr_bytes, make_envmap, start_server, wait_until
 
@@ -33,13 +34,13 @@ pytestmark = pytest.mark.timeout(600)
 
 
 @pytest.fixture(scope="module")
-def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("results")
+def data_dir(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Path:
+    return tmp_path_factory.mktemp(f"results-{database.name}")
 
 
 @pytest.fixture(scope="module")
-def server(data_dir: Path) -> Iterator[Server]:
-    srv = start_server(data_dir)
+def server(data_dir: Path, database: Backend) -> Iterator[Server]:
+    srv = start_server(data_dir, database=database)
     yield srv
     srv.stop()
 

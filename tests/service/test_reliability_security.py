@@ -23,6 +23,7 @@ import pytest
 from distributed import Client
 from distributed.security import Security
 
+from .postgres import Backend
 from .support import Server, exr_bytes, make_envmap, start_server
 
 pytestmark = pytest.mark.timeout(240)
@@ -32,9 +33,9 @@ PUBLIC = {"/health", "/metrics"}
 
 
 @pytest.fixture(scope="module")
-def keyed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+def keyed(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[Server]:
     srv = start_server(tmp_path_factory.mktemp("keyed"),
-                       {"RELIGHT_API_KEY_HASHES": hashlib.sha256(API_KEY.encode()).hexdigest()})
+                       {"RELIGHT_API_KEY_HASHES": hashlib.sha256(API_KEY.encode()).hexdigest()}, database=database)
     yield srv
     srv.stop()
 

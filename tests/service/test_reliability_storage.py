@@ -21,6 +21,7 @@ from pathlib import Path
 import httpx
 import pytest
 
+from .postgres import Backend
 from .support import REPO, Server, base_env, exr_bytes, make_envmap, start_server, wait_done, wait_until
 
 pytestmark = pytest.mark.timeout(240)
@@ -29,9 +30,9 @@ STALE_AGE_S = 2 * 3600  # older than relight.worker.store_check.STALE_TMP_S (600
 
 
 @pytest.fixture(scope="module")
-def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def data_dir(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Path:
     """A data directory whose blob store already holds a stale and a fresh temporary file."""
-    d = tmp_path_factory.mktemp("storage")
+    d = tmp_path_factory.mktemp(f"storage-{database.name}")
     tmp = d / "blobs" / "tmp"
     tmp.mkdir(parents=True)
     (tmp / "stale.part").write_bytes(b"x" * 1000)
@@ -42,9 +43,10 @@ def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def store_server(data_dir: Path) -> Iterator[Server]:
+def store_server(data_dir: Path, database: Backend) -> Iterator[Server]:
     srv = start_server(data_dir, {"RELIGHT_MIN_FREE_BYTES": str(1 << 60),  # no disk has an exbibyte free
-                                  "RELIGHT_BLOB_CACHE_BYTES": str(64 << 10)})  # results over 8 KiB are streamed
+                                  "RELIGHT_BLOB_CACHE_BYTES": str(64 << 10)},  # results over 8 KiB are streamed
+                       database=database)
     yield srv
     srv.stop()
 

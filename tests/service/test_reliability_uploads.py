@@ -16,6 +16,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
+from .postgres import Backend
 from .support import Server, assert_problem, exr_bytes, fresh_health, make_envmap, start_server
 
 pytestmark = pytest.mark.timeout(300)
@@ -24,10 +25,10 @@ MAX_PIXELS = 2048 * 1024
 
 
 @pytest.fixture(scope="module")
-def uploader(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+def uploader(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[Server]:
     srv = start_server(tmp_path_factory.mktemp("uploads"), {
         "RELIGHT_MAX_PIXELS": str(MAX_PIXELS), "RELIGHT_MAX_UPLOAD_BYTES": str(24 << 20),
-        "RELIGHT_WORKER_MEMORY_LIMIT": "1GiB"})
+        "RELIGHT_WORKER_MEMORY_LIMIT": "1GiB"}, database=database)
     yield srv
     srv.stop()
 

@@ -25,6 +25,7 @@ from distributed import Client
 from relight.client.errors import ApiError
 from relight.contract.models import JobState
 
+from .postgres import Backend
 from .support import Proc, Server, assert_problem, base_env, library_map, read_exr, start_server, wait_until
 from .test_reliability_security import http_answer
 
@@ -47,7 +48,7 @@ def tls_init(directory: Path) -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
-def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, list[Proc]]]:
+def cluster(tmp_path_factory: pytest.TempPathFactory, database: Backend) -> Iterator[tuple[Server, list[Proc]]]:
     tmp = tmp_path_factory.mktemp("scale-out")
     port = free_port()
     address = f"tls://127.0.0.1:{port}"
@@ -69,7 +70,7 @@ def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, 
             "RELIGHT_API_KEY_HASHES": hashlib.sha256(API_KEY.encode()).hexdigest(),
             "RELIGHT_CORS_ORIGINS": ORIGIN,
             "RELIGHT_MAX_UPLOAD_BYTES": str(64 << 20),  # room for a MERL file (35 MB)
-        })
+        }, database=database)
         procs.append(server)
         with server.client(api_key=API_KEY) as c:
             wait_until(lambda: c.health().workers == 2, 60, "both workers to join the scheduler", interval=0.2)
