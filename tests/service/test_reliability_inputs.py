@@ -141,6 +141,19 @@ def test_chunked_upload_over_the_limit_is_413_and_nothing_stored(guarded: Server
     assert_healthy(gh)
 
 
+@pytest.mark.parametrize(("method", "url"), [("GET", "/envmaps/ab%00cd"), ("GET", "/jobs/ab%00cd"),
+                                           ("POST", "/meshes?name=a%00b.obj"), ("GET", "/jobs?state=queued%00")])
+def test_a_nul_in_the_url_is_400_and_nothing_stored(guarded: Server, gh: httpx.Client, method: str, url: str
+                                                    ) -> None:
+    """A NUL character in an id or a name: on PostgreSQL these were 500s (psycopg refuses a string literal with a
+    NUL; SQLite answered 404 and stored a mesh named ``a\\x00b.obj``); now 400 on both, before the route runs."""
+    before = blob_files(guarded)
+    body = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n" if method == "POST" else None
+    assert_problem(gh.request(method, url, content=body), 400, "NUL")
+    assert blob_files(guarded) == before  # the mesh upload's body was never read, let alone stored
+    assert_healthy(gh)
+
+
 def test_header_over_64_kib_is_431(guarded: Server, gh: httpx.Client) -> None:
     """1 MB of header (the issue's attack used 100 MB; the server reads at most one socket read past 64 KiB)."""
     head = (b"GET /health HTTP/1.1\r\nHost: localhost\r\nX-Pad: " + b"x" * (1 << 20) + b"\r\n\r\n")
