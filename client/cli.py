@@ -133,7 +133,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
             print(f"  {lobe.kind} ({lobe.center}-centred): order {order(lobe.order_with_sun, lobe.met_with_sun)} "
                   f"with the sun, {order(lobe.order_without_sun, lobe.met_without_sun)} without: "
-                  f"{lobe.factor:.2f}x lower at epsilon = {plan.sun.epsilon:g}")
+                  f"{lobe.factor:.2f}x lower at epsilon = {plan.sun.epsilon:g} (the residual held to its own "
+                  f"energy: {order(lobe.order_residual_alone, lobe.met_residual_alone)})")
     return 0
 
 

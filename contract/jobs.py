@@ -62,8 +62,12 @@ class SunLobeOrders(Public):
     order_with_sun: int = Field(description="smallest F <= F_B whose predicted error per view band meets epsilon "
                                 "under the map as uploaded (F_B when none does)")
     met_with_sun: bool
-    order_without_sun: int = Field(description="the same under the map without its sun (the residual)")
+    order_without_sun: int = Field(description="the residual's order when the output is its SHRM plus the sun as "
+                                   "a point light: their errors (triangle inequality) held to epsilon of the map's "
+                                   "output energy")
     met_without_sun: bool
+    order_residual_alone: int = Field(description="the residual's order held to epsilon of its own output energy")
+    met_residual_alone: bool
     factor: float = Field(description="order_with_sun / order_without_sun: the order reduction the extraction buys")
 
 

@@ -41,8 +41,10 @@ REL_THRESHOLD = 0.01
 #: a few degrees.
 SEARCH_DEG = 10.0
 #: The removed disc reaches this much beyond the core (degrees). On city.exr (core reach 1.2 deg) the residual's
-#: planned order for microfacet sigma = 0.2 at epsilon = 1e-3 (per view band, ``relight.planning.sun_orders``) is
-#: 20 at 1 deg, 18 at 2 deg, 17 at 7 deg and beyond, against 25 with the core alone and a flat fill.
+#: planned order for microfacet sigma = 0.2 at epsilon = 1e-3 held to its own energy (per view band,
+#: ``relight.planning.sun_orders``: ``order_residual_alone``) is 20 at 1 deg, 18 at 2 deg, 17 at 7 deg and beyond,
+#: against 25 with the core alone and a flat fill; held to the original map's output energy (the residual's error
+#: alone, no point-light error) it is 8 at 0, 2 and 5 deg (the skyline, not the sun's glow, sets it).
 HALO_DEG = 2.0
 #: A map has a sun only if its peak luminance is at least this many times the mean (city.exr: 3.3e4).
 MIN_PEAK_OVER_MEAN = 100.0

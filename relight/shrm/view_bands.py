@@ -96,6 +96,35 @@ def brdf_band_epsilon(spec: ViewSpectrum, p_order: int, f_max: int | None = None
     return np.asarray(eps.max(axis=-1), dtype=np.float64)
 
 
+def _error_and_output(spec: ViewSpectrum, lighting: Lighting, f_b: int, p_b: int,
+                      window: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+    """Per view node (n_o, C): the orientation average's error energy ``e(theta_o)`` of an SHRM at (F_B, P_B) and
+    the output energy, both with the flat continuation beyond L* (module docstring, ``rms_average``)."""
+    e_light = np.asarray(lighting.band_energy(), dtype=np.float64)
+    l_star = min(spec.F, int(lighting.lmax))
+    f_b_l = min(f_b, l_star)
+    lam2 = lambda_l(max(spec.F, f_b, int(lighting.lmax)) + 1) ** 2
+    a = lam2[: l_star + 1] * e_light[: l_star + 1]
+    k_l = spec.band_energy_per_view()
+    d_l = spec.truncation_error_per_view(p_b, window)
+    k_cum = np.cumsum(k_l, axis=0)
+    tail = lighting_level(lam2, e_light, l_star, int(lighting.lmax)) * np.clip(spec.k_tot - k_cum[l_star], 0.0, None)
+    num = np.einsum("l,loc->oc", a[: f_b_l + 1], d_l[: f_b_l + 1])
+    num += np.einsum("l,loc->oc", a[f_b_l + 1 :], k_l[f_b_l + 1 : l_star + 1]) + tail
+    den = np.einsum("l,loc->oc", a, k_l[: l_star + 1]) + tail
+    return np.asarray(num, dtype=np.float64), np.asarray(den, dtype=np.float64)
+
+
+def error_and_output_by_band(spec: ViewSpectrum, lighting: Lighting, f_b: int,
+                             p_b: int) -> tuple[FloatArray, FloatArray]:
+    """Per fine band of ``spec`` (n_bands, C): the error energy an SHRM at (F_B, P_B) makes under ``lighting`` and
+    the output energy, integrated over the band's ``d cos theta_o`` (``epsilon`` of :func:`predicted_by_view` is
+    their ratio). Energies, not ratios, so that errors of parts of a lighting can be held to one output's energy
+    (``relight.planning.sun_orders``)."""
+    num, den = _error_and_output(spec, lighting, f_b, p_b)
+    return spec.band_sum(num[None])[0], spec.band_sum(den[None])[0]
+
+
 def _merge(spec: ViewSpectrum, lo: float, hi: float) -> NDArray[np.bool_]:
     e = np.asarray(spec.edges)
     return np.asarray((e[:-1] >= lo - 1e-9) & (e[1:] <= hi + 1e-9))
@@ -129,16 +158,13 @@ def predicted_by_view(
     d_l = spec.truncation_error_per_view(p_b, window)
     k_cum = np.cumsum(k_l, axis=0)
     e_cum = np.cumsum(e_light[: l_star + 1])
+    num, den = _error_and_output(spec, lighting, f_b, p_b, window)
 
     def step(order: int) -> FloatArray:  # App. B's bound on sum_{l > order} Lambda_l^2 E^L_l K_l, per node
         rest_l = max(l_tot - float(e_cum[min(order, l_star)]), 0.0)
         rest_k = np.clip(spec.k_tot - k_cum[order], 0.0, None)
         return np.asarray(lam2[order + 1] * rest_l * rest_k, dtype=np.float64)
 
-    tail = lighting_level(lam2, e_light, l_star, int(lighting.lmax)) * np.clip(spec.k_tot - k_cum[l_star], 0.0, None)
-    num = np.einsum("l,loc->oc", a[: f_b_l + 1], d_l[: f_b_l + 1])
-    num += np.einsum("l,loc->oc", a[f_b_l + 1 :], k_l[f_b_l + 1 : l_star + 1]) + tail
-    den = np.einsum("l,loc->oc", a, k_l[: l_star + 1]) + tail
     num_b = np.einsum("l,loc->oc", a[: f_b_l + 1], d_l[: f_b_l + 1]) + step(f_b_l)
     den_b = np.einsum("l,loc->oc", a[: f_b_l + 1], k_l[: f_b_l + 1])
     sums = [spec.band_sum(x[None])[0] for x in (num, den, num_b, den_b)]  # (n_bands, C) each

@@ -2,10 +2,13 @@
 harmonic fill behind the residual (relight.sun.harmonic_fill).
 
 Measured (city.exr, 512 rows; per view band, orientation average, grazing limit 0.1): microfacet sigma = 0.2 keeps
-its planned F_B = 31 with the sun (the prediction does not meet epsilon below it) and needs 18 without it at
-epsilon = 1e-3 (1.7x; the issue asks 4x, which this criterion does not give there: the residual's city skyline
-alone needs F = 18 in the grazing bands), 7 of F_B = 32 at epsilon = 1e-2 (4.6x). The former extraction (core
-pixels only, flat fill) left an aureole ring and a hard-edged hole: 25 at 1e-3.
+its planned F_B = 31 with the sun (the prediction does not meet epsilon below it). Without the sun the output is the
+residual's SHRM plus the sun as a point light, held to the same epsilon of the original output's energy, the point
+light's own error included: 13 at epsilon = 1e-3 (2.4x), 4 of F_B = 32 at 1e-2 (8x). Held to its own energy the
+residual needs 18 at 1e-3 (1.7x) and 7 at 1e-2. The issue asks 4x at 1e-3; it is out of reach
+(test_what_limits_the_reduction_at_1e_3): the residual's skyline alone, with no point-light error at all, needs
+F = 8 > 31 / 4 there. The former extraction (core pixels only, flat fill) left an aureole ring and a hard-edged
+hole: 25 at 1e-3 held to its own energy.
 """
 
 from __future__ import annotations
@@ -139,9 +142,67 @@ def test_city_order_with_and_without_the_sun() -> None:
         assert with_sun == f_b
 
 
+def test_point_error_spectrum_is_the_addition_theorem_double_sum() -> None:
+    """``point_error_lighting``'s band energies (a projection plus a Legendre recurrence) against the double sum
+    ``(2l+1)/(4 pi) sum_jk w_j w_k P_l(d_j . d_k)`` over the removed pixels and the point ``-E`` at the sun's
+    direction (scipy's Legendre polynomials): the band energies of that set of point masses by the addition theorem.
+    Tolerance: both are float64 sums of ~400^2 terms of size <= E^2 (2l+1)/(4 pi) ~ 70 at l = 96, so 1e-9 of that
+    scale; E^delta_0 = 0 because E is the removed illuminance."""
+    from scipy.special import eval_legendre
+
+    from relight.planning.sun_orders import point_error_lighting
+
+    px = _city()
+    res = extract_sun(px)
+    lmax = 96
+    pe = point_error_lighting(px, res.pixels, res.report, lmax)
+    h, w = px.shape[:2]
+    x = (px - res.pixels) @ LUMINANCE_WEIGHTS
+    sel = x != 0.0
+    wk = (x * pixel_solid_angles(h, w)[:, None])[sel]
+    s = np.asarray(res.report["direction"])
+    pts = np.vstack([latlong_dirs(h, w)[sel], s])
+    ww = np.concatenate([wk, [-wk.sum()]])
+    c = np.clip(pts @ pts.T, -1.0, 1.0)
+    ref = np.array([(2 * ell + 1) / (4 * np.pi) * ww @ eval_legendre(ell, c) @ ww for ell in range(lmax + 1)])
+    scale = wk.sum() ** 2 * (2 * lmax + 1) / (4 * np.pi)
+    np.testing.assert_allclose(pe.energies, np.clip(ref, 0.0, None), rtol=0, atol=1e-9 * scale)
+    assert pe.energies[0] < 1e-12 * scale and pe.energies[lmax] > 1e-6 * scale  # the point differs at high l
+
+
+def test_what_limits_the_reduction_at_1e_3() -> None:
+    """Issue 17 asks the residual's order at epsilon = 1e-3 to be 4x lower than with the sun (31, F_B: not met
+    below it). Held to the original output's energy, the residual's SHRM error *alone* (the sun's point-light error
+    left out, which can only raise the order) needs more than 31 / 4: the skyline's bands 8..15 hold 1.0e-3 of the
+    output energy at N.V in [0.1, 0.2]. With the point light's error (the order the plan reports) it is higher still
+    and at most the order the residual needs held to its own, smaller, output energy."""
+    from relight.brdf.spec import parse_brdf
+    from relight.planning.job import plan_job
+    from relight.planning.sun_orders import point_error_lighting
+    from relight.shrm import brdf_lobes
+
+    px = _city()
+    eps = 1e-3
+    plan = plan_job(_info(px), MICROFACET, {"epsilon": eps})
+    assert plan.component_plans is not None
+    f_b, p_b = plan.component_plans[0].F_B, plan.component_plans[0].P_B
+    lobe = brdf_lobes(parse_brdf(MICROFACET))[0]
+    kw = {"height": px.shape[0], "grazing_limit": GRAZING}
+    original = _stored(px)
+    res = extract_sun(px)
+    residual = _stored(res.pixels)
+    bare, met_bare = lighting_order(lobe, residual, f_b, p_b, eps, output=original, **kw)
+    point = point_error_lighting(px, res.pixels, res.report, px.shape[0] - 1)
+    full, met_full = lighting_order(lobe, residual, f_b, p_b, eps, output=original, exact_part=point, **kw)
+    alone, _ = lighting_order(lobe, residual, f_b, p_b, eps, **kw)
+    assert met_bare and met_full
+    assert 4 * bare > f_b  # the 4x is out of reach whatever the sun's model
+    assert bare <= full <= alone
+
+
 def test_plan_shows_the_reduction() -> None:
     """The job plan with sun=extract lists per lobe the orders with and without the sun and their ratio; the
-    issue's 4x holds for microfacet sigma = 0.2 at epsilon = 1e-2 (module docstring: 1.7x at 1e-3)."""
+    issue's 4x holds for microfacet sigma = 0.2 at epsilon = 1e-2 (module docstring: 2.4x at 1e-3)."""
     px = _city()
     info = _info(px)
     plain = plan_job_with_sun(info, MICROFACET, {"epsilon": 1e-2}, CITY)
@@ -152,6 +213,8 @@ def test_plan_shows_the_reduction() -> None:
     assert lobe["F_B"] == plan.orders.F_B and lobe["factor"] == pytest.approx(
         lobe["order_with_sun"] / lobe["order_without_sun"])
     assert lobe["met_without_sun"] and lobe["factor"] >= 4.0
+    # held to the original output the residual needs no more than held to its own, smaller, output energy
+    assert lobe["met_residual_alone"] and lobe["order_without_sun"] <= lobe["order_residual_alone"]
     assert plan.to_json()["sun"]["extracted"]["mode"] == "extract"
 
 
@@ -160,10 +223,11 @@ def test_residual_shrm_at_the_reduced_order_plus_the_analytic_sun_equals_the_bru
     microfacet sigma = 0.2 at epsilon = 1e-3, plus the sun as a directional light
     (``relight.reference_view.directional_view``: ``E f(s, V, N) max(N . s, 0)``), against the angular brute force
     of the *original* map (``reference_view``, both maps area-averaged to 128 rows to keep the brute force at ~15 s
-    a view). The issue's bound is 2 %: the plan holds the residual's part to epsilon = 1e-3 of its energy per view
-    band (relative RMS ~ 3 % of a part that is about half of the output), and the removed disc (3.2 deg) as a point
-    costs about (3.2 / 11)^2 / 8 ~ 1 % of the sun's part under a lobe ~ 11 deg wide. Without the sun the map is
-    ~ 50 % off, so the test can fail."""
+    a view). The issue's bound is 2 %: the plan holds the residual SHRM's error plus the point light's to
+    epsilon = 1e-3 of the original output's energy per view band (relative RMS ~ 3 % in the worst, grazing band,
+    where few texels lie; the bands of most texels are predicted below 1e-4, relative RMS 1 %). Measured: 0.30 % and
+    0.25 % at order 12, 0.26 % and 0.23 % at 18 (0.84 % and 0.57 % at 7, 2.9 % and 2.3 % at 5; the plan gives 13).
+    Without the sun the map is ~ 50 % off, so the test can fail."""
     from relight.brdf.spec import parse_brdf
     from relight.envmap.resample import resample_latlong
     from relight.metrics import relative_rms
