@@ -7,7 +7,14 @@ Starts ``relight serve`` (embedded cluster, two worker processes) on a fresh dat
 1. **Idle.** 500 sequential ``/health`` calls on one connection: latency percentiles (the request path's own cost).
 2. **Load.** ``--clients`` concurrent clients loop over ``GET /jobs``, ``GET /envmaps/{id}``, ``POST /plan`` (a
    Phong plan: planned in the sandbox pool) and SHRM submissions for ``--seconds`` while ``/health`` is asked every
-   50 ms on its own connection: its percentiles, calls over 100 ms, and the load requests answered.
+   50 ms on its own connection: its percentiles, calls over 100 ms, and the load requests answered. Asked twice:
+   ``loaded`` from a process of its own (a blocking client: the server's latency), ``loaded_in_client_loop`` from
+   the event loop that also drives the load clients (what earlier versions reported: it adds the wait for that
+   loop, busy parsing the load's answers on the same CPUs).
+3. **The machine's floor.** While loaded, a process of its own that does nothing but sleep 50 ms at a time reports
+   how late it wakes up (``wakeup_delay``): no server can answer faster than the operating system runs it, so a
+   ``/health`` p99 near this floor is the machine's, not the server's. And the server's event-loop thread: CPU
+   seconds it ran and seconds it waited for a CPU (``/proc/PID/task/PID/schedstat``).
 
 Prints a markdown table and writes JSON, with the machine's load average. Not a test: numbers depend on the machine.
 """
@@ -17,6 +24,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import multiprocessing
 import os
 import sys
 import tempfile
@@ -54,6 +62,40 @@ async def health_calls(url: str, stop: asyncio.Event | None, n: int, interval: f
     return out
 
 
+def watch_in_process(url: str, seconds: float, go: Any, out: Any) -> None:
+    """``/health`` every 50 ms for ``seconds`` from ``go`` on, from this (separate) process, on one keep-alive
+    connection."""
+    lat: list[float] = []
+    with httpx.Client(base_url=url, timeout=30) as http:
+        go.wait()
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            t = time.perf_counter()
+            r = http.get("/health")
+            lat.append(time.perf_counter() - t if r.status_code == 200 else float("inf"))
+            time.sleep(0.05)
+    out.send(lat)
+
+
+def wakeup_delays(seconds: float, go: Any, out: Any) -> None:
+    """How late a 50 ms sleep ends, again and again for ``seconds`` from ``go`` on, in this (separate, otherwise
+    idle) process."""
+    late: list[float] = []
+    go.wait()
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        t = time.perf_counter()
+        time.sleep(0.05)
+        late.append(time.perf_counter() - t - 0.05)
+    out.send(late)
+
+
+def schedstat(pid: int) -> tuple[float, float]:
+    """(seconds run on a CPU, seconds waited for one) of the process's main thread."""
+    run_ns, wait_ns, _ = open(f"/proc/{pid}/task/{pid}/schedstat").read().split()
+    return int(run_ns) / 1e9, int(wait_ns) / 1e9
+
+
 async def loader(url: str, env: str, k: int, stop: asyncio.Event, counts: dict[str, int]) -> None:
     async with httpx.AsyncClient(base_url=url, timeout=120) as http:
         i = 0
@@ -74,17 +116,37 @@ async def loader(url: str, env: str, k: int, stop: asyncio.Event, counts: dict[s
             counts[key] = counts.get(key, 0) + 1
 
 
-async def run(url: str, env: str, clients: int, seconds: float) -> dict[str, Any]:
+async def run(url: str, env: str, clients: int, seconds: float, server_pid: int) -> dict[str, Any]:
     idle = summary(await health_calls(url, None, 500, 0.0))
     stop = asyncio.Event()
     counts: dict[str, int] = {}
+    ctx = multiprocessing.get_context("spawn")
+    go = ctx.Event()
+    receive, send = ctx.Pipe(duplex=False)
+    own = ctx.Process(target=watch_in_process, args=(url, seconds, go, send))
+    own.start()
+    receive_floor, send_floor = ctx.Pipe(duplex=False)
+    floor = ctx.Process(target=wakeup_delays, args=(seconds, go, send_floor))
+    floor.start()
+    await asyncio.sleep(5.0)  # both interpreters start (imports) before the load does
+    go.set()
+    sched0 = schedstat(server_pid)
     watch = asyncio.create_task(health_calls(url, stop, 0, 0.05))
     load = [asyncio.create_task(loader(url, env, k, stop, counts)) for k in range(clients)]
     await asyncio.sleep(seconds)
     stop.set()
-    loaded = summary(await watch)
+    sched1 = schedstat(server_pid)
+    in_loop = summary(await watch)
     await asyncio.gather(*load)
-    return {"idle": idle, "loaded": loaded, "load_requests": counts, "loadavg": list(os.getloadavg())}
+    loaded = summary(await asyncio.to_thread(receive.recv))
+    wakeup = summary(await asyncio.to_thread(receive_floor.recv))
+    own.join()
+    floor.join()
+    return {"idle": idle, "loaded": loaded, "loaded_in_client_loop": in_loop, "wakeup_delay": wakeup,
+            "load_requests": counts,
+            "server_loop_thread": {"ran_s": round(sched1[0] - sched0[0], 2),
+                                   "waited_for_cpu_s": round(sched1[1] - sched0[1], 2)},
+            "loadavg": list(os.getloadavg())}
 
 
 def main() -> int:
@@ -99,20 +161,22 @@ def main() -> int:
             with httpx.Client(base_url=server.url, timeout=60) as http:
                 r = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=5), Path(tmp)))
                 env = r.json()["id"]
-            res = asyncio.run(run(server.url, env, args.clients, args.seconds))
+            res = asyncio.run(run(server.url, env, args.clients, args.seconds, server.pid))
         finally:
             server.stop()
     res["clients"] = args.clients
     res["seconds"] = args.seconds
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(res, indent=2))
-    print("| /health | calls | p50 ms | p99 ms | max ms | over 100 ms |")
+    print("| /health (or the floor) | calls | p50 ms | p99 ms | max ms | over 100 ms |")
     print("|---|---|---|---|---|---|")
-    for name in ("idle", "loaded"):
+    for name in ("idle", "loaded", "loaded_in_client_loop", "wakeup_delay"):
         s = res[name]
         print(f"| {name} | {s['calls']} | {s['p50_ms']} | {s['p99_ms']} | {s['max_ms']} | {s['over_100ms']} |")
+    loop = res["server_loop_thread"]
     print(f"\n{args.clients} load clients for {args.seconds} s: {res['load_requests']}; load average "
-          f"{', '.join(f'{x:.1f}' for x in res['loadavg'])}")
+          f"{', '.join(f'{x:.1f}' for x in res['loadavg'])}; the server's event-loop thread ran {loop['ran_s']} s "
+          f"and waited {loop['waited_for_cpu_s']} s for a CPU")
     return 0
 
 
