@@ -66,12 +66,16 @@ CASES: dict[str, Case] = {
                                     "objects": [{"name": "chalk", "size": 1, "distance": 10,
                                                  "material": "lambert:albedo=0.7"}]},
               "/scenes/{id}/files/{name}"),
-    # planner v2's archives: the uploaded mesh's shadowed transfer (``chalk.transfer.npz``) and the anisotropic
-    # BRDF's SH table (``job<NN>-sh_table.npz``), each with a manifest inside
+    # planner v2's archives: the uploaded mesh's shadowed transfer (``chalk.transfer.npz``), the anisotropic
+    # BRDF's SH table (``job<NN>-sh_table.npz``), each with a manifest inside, and the shadowed anisotropic mesh's
+    # prt_matrix files for the viewer (``P.shadow_matrix.bin``, ``P.geometry.bin``, ``P.prt_matrix.json``)
     "scene_archives": ("/scenes", lambda i: {"environment": i["env"], "epsilon": 0.05, "size": 8, "objects": [
         {"name": "chalk", "mesh": i["mesh"], "size": 1, "distance": 10, "material": "lambert:albedo=0.7"},
         {"name": "brushed", "size": 1, "distance": 10, "material": "ashikhmin-shirley:nu=24,nv=8,rs=0.05,rd=0",
-         "tangent": {"kind": "project", "direction": [1, 0, 0]}, "shadows": "none"}]},
+         "tangent": {"kind": "project", "direction": [1, 0, 0]}, "shadows": "none"},
+        {"name": "brushed_shadowed", "mesh": i["mesh"], "size": 1, "distance": 10,
+         "material": "ashikhmin-shirley:nu=24,nv=8,rs=0.05,rd=0",
+         "tangent": {"kind": "project", "direction": [1, 0, 0]}, "shadows": "exact"}]},
         "/scenes/{id}/files/{name}"),
     "shrm": ("/shrms", lambda i: {"envmap": i["env"], "brdf": "phong:s=8", "order": 4, "size": 8},
              "/shrms/{id}/{name}"),
@@ -159,6 +163,8 @@ def test_a_lost_or_corrupt_result_file_is_recomputed_never_served(kind: str, htt
     if kind == "ibl":
         assert measured["stage_seconds"]["level_00"] > 0 and measured["task_seconds"] > 0, measured
     files = files_of(http, kind, job_id)
+    if kind == "scene_archives":  # the case covers the viewer's prt_matrix files
+        assert {"shadow_matrix.bin", "geometry.bin", "prt_matrix.json"} <= {n.split(".", 1)[-1] for n in files}, files
     stored = stored_of(http, data_dir, kind, job_id)
     url = CASES[kind][2]
     names = sorted(files)
