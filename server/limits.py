@@ -7,9 +7,10 @@ a byte of the body is read.
   is missing or wrong; JSON bodies are read here up to ``max_json_bytes`` (413 beyond, whether a length was declared
   or the body is chunked) and replayed to the route; upload bodies (``UPLOAD_PATHS``) are streamed to the route
   with their bytes counted (413 the moment ``max_upload_bytes`` is passed). A URL whose path or query holds a NUL
-  character (``%00``) is answered 400 before anything else: no id, name or parameter of the API contains one, and
-  PostgreSQL cannot even compare a string holding one (psycopg refuses the query: a 500 on PostgreSQL where SQLite
-  answered 404, found by the service suites' PostgreSQL legs).
+  character (``%00``) is answered 422 (``validation-error``, as a parameter FastAPI refuses) before anything else:
+  no id, name or parameter of the API contains one, and PostgreSQL cannot even compare a string holding one
+  (psycopg refuses the query: a 500 on PostgreSQL where SQLite answered 404, found by the service suites'
+  PostgreSQL legs).
 * :class:`BoundedHttpToolsProtocol` (uvicorn's httptools protocol with a cap): the request line and headers
   together may take ``MAX_HEAD_BYTES``; beyond, the connection gets 431 and is closed. httptools buffers a header
   field whole before handing it on, so the count is kept on the raw bytes received while the head is open.
@@ -73,7 +74,7 @@ class BodyLimit:
             return
         method, path = scope["method"], scope["path"]
         if "\x00" in path or b"%00" in scope.get("query_string", b""):
-            await send_problem(send, 400, "bad-request", "Bad Request",
+            await send_problem(send, 422, "validation-error", "Unprocessable Content",
                                "the URL holds a NUL character (%00); no id, name or parameter may contain one",
                                path.replace("\x00", "%00"))
             return

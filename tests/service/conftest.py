@@ -9,9 +9,10 @@ parametrised fixture, so pytest runs the tests that use it on SQLite first and t
 database=database)``: every route test (tests/service/routes/), resume after a kill and cancellation
 (test_resilience), the fault-injection kills of the embedded and of the deployment-form cluster (scheduler killed),
 SIGTERM and resume (test_faults), the scale-out cluster (test_scale_out), and every reliability suite with a server
-of its own (test_reliability_*, test_client_retry, test_interactive_slots, test_envmap_streaming). One database
-each: test_reliability_postgres (PostgreSQL by construction: two servers on one database), the two schemathesis
-fuzz runs (test_openapi, test_openapi_stateful: their budget is minutes per run) and test_reliability_compute
+of its own (test_reliability_*, test_client_retry, test_interactive_slots, test_envmap_streaming). The stateless
+schemathesis run (test_openapi) too: on PostgreSQL it met strings SQLite takes and PostgreSQL refuses (NUL). One
+database each: test_reliability_postgres (PostgreSQL by construction: two servers on one database), the stateful
+fuzz run (test_openapi_stateful: its budget is minutes per run) and test_reliability_compute
 (the planning sandboxes, which read one envmap row: its server burns 20 CPU seconds per plan, about 3 minutes per
 leg on a loaded 2-core machine). ``RELIGHT_TEST_DATABASES=sqlite`` (or
 ``postgresql``) runs one of them only, for a quicker local run; CI runs both.
