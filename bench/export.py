@@ -4,8 +4,8 @@ The chain: a 1024 x 512 map (default ``data/envmaps/city.exr``, a sun at 3.4e4 x
 5 levels cmgen 1.9.25 writes at that size (256 ... 16, perceptual roughness 0, 0.134, 0.293, 0.5, 1: the
 quadratic lod mapping, which is relight's ``--target filament --levels 5``; the roughness cmgen prints per level
 is parsed and checked). Both sides are measured against one reference: the angular brute force of the split-sum
-GGX lobe (``relight.cap_convolution.brute_force``, every pixel of the map) at ``--texels`` random texels per level, the
-same directions for both.
+GGX lobe (``relight.cap_convolution.brute_force``: the map's bilinear interpolant on a grid finer than the lobe, over
+the whole sphere) at ``--texels`` random texels per level, the same directions for both.
 
 cmgen's cube is rotated against relight's frame: its (default, mirrored) texel for OpenGL direction d shows the
 map at relight's ``(d_z, d_y, -d_x)`` (a quarter turn about +Y; found by matching level 0 against the map sampled
@@ -120,7 +120,7 @@ def main() -> None:
             cm_dirs = d[pick]
             dirs = cm_dirs @ CMGEN_TURN.T
             lobe = GGXSplitSum(rough[i])
-            refs.append({"pick": pick, "dirs": dirs, "ref": brute_force(pixels, lobe, dirs, chunk=16)})
+            refs.append({"pick": pick, "dirs": dirs, "ref": brute_force(pixels, lobe, dirs)})
 
         for n, run in cm_runs.items():
             errs = [_rel_rms(run["levels"][i]["faces"].reshape(-1, 3)[r["pick"]].astype(np.float64), r["ref"])

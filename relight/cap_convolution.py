@@ -1,33 +1,60 @@
-"""Convolution of a lat-long map with a radial lobe that vanishes beyond a cap, summed over the cap's pixels.
+"""Convolution of a lat-long map with a radial lobe that vanishes beyond a cap, and its dense reference.
 
-``B(d) = sum_k L_k dOmega_k u(d . w_k)`` over the pixels within ``theta_max`` of each direction (the pixel-centre
-quadrature of the whole sphere, restricted to the cap): the near part of a lobe that the map cannot resolve in
-spherical harmonics (``relight.cube_chain``'s split levels). :class:`WindowedLobe` cuts a lobe into such a near
-part and the smooth far part with a raised-cosine window (the two sum to the lobe exactly); :func:`brute_force`
-is the dense sum over every pixel that the cap sum is tested against.
+The map is the function the engines sample: the bilinear interpolant of its pixel centres
+(:func:`relight.conventions.bilinear_latlong`: columns wrap, rows clamp at the poles). The convolution is
+
+    B(d) = int_S2 u(d . w) L(w) dw
+
+over the cap ``theta <= theta_max`` where ``u`` is non-zero (the near part of a lobe that the map cannot resolve in
+spherical harmonics: ``relight.cube_chain``'s split levels). :class:`WindowedLobe` cuts a lobe into such a near
+part and the smooth far part with a raised-cosine window (the two sum to the lobe exactly).
+
+:func:`angular_convolution` integrates cell by cell (a cell: one pixel's lat-long rectangle) with a midpoint rule
+refined where the lobe varies within the cell, then rescales the sum so that its weights integrate to the lobe's
+exact mass (:func:`cap_mass`): the sum is scaled to it, except for a lobe narrower than the finest sub-cells,
+where a sum short of it gives the rest to the interpolant at ``d`` (the part of the peak the sub-cells miss).
+The weights stay positive and sum to the lobe's mass, so the result never leaves ``[min L, max L]`` times that
+mass, and a lobe narrower than a sub-cell tends to ``L(d)``, the bilinear value at the texel's direction.
+(Summing ``L_k dOmega_k u(d . w_k)`` at the pixel centres alone is not normalised for such a lobe: a pixel
+centre next to ``d`` takes the peak's weight times a whole pixel's solid angle; on an octant map with values in
+[0.05, 1] a level reached 3.5.)
+
+:func:`brute_force` is the independent reference tests use: the same integral over the whole sphere on the map
+upsampled ``m`` x ``m`` (a finer lat-long grid, its cells' exact solid angles, the interpolant at their centres
+by :func:`relight.conventions.sample_latlong`), ``m`` chosen from the lobe's half width and no normalisation.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Literal
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import csr_matrix
 
 from relight.brdf.base import RadialLobe
-from relight.conventions import column_phis, dirs_to_angles, latlong_dirs, pixel_solid_angles, require_rgb_latlong
-from relight.errors import InputError
+from relight.conventions import (
+    column_phis,
+    dirs_to_angles,
+    latlong_dirs,
+    pixel_solid_angles,
+    require_rgb_latlong,
+    sample_latlong,
+)
 
 FloatArray = NDArray[np.float64]
 
-#: (direction, pixel) pairs per block of the angular path's sparse sum (bounds its memory to ~ 100 bytes x this).
-_PAIRS_PER_BLOCK = 2_000_000
-#: Nodes of the tabulated near lobe (uniform in the chord up to the window's end; module docstring of
-#: :func:`angular_convolution`).
+#: Nodes of the tabulated near lobe, uniform in sqrt(chord / chord_max) (a node every chord_max / N^2 at the
+#: peak: a lobe a millionth of the cap wide still spans hundreds of nodes).
 _KERNEL_TABLE = 16384
+#: The near sum's midpoint rule takes this many samples across the scale on which the lobe varies inside a cell
+#: (its half width at the peak, the distance from the peak further out); at most NEAR_MAX_SUB per cell side.
+NEAR_SUB_PER_SCALE = 2.0
+NEAR_MAX_SUB = 8
+#: The reference's fine grid: this many samples across the lobe's half width, and at least 2 per pixel side.
+REF_SUB_PER_HALF_WIDTH = 3.0
+#: Elements of the reference's (directions x fine cells) kernel block (bounds its memory to ~ 50 bytes x this).
+_REF_BLOCK = 4_000_000
 
 
 class WindowedLobe(RadialLobe):
@@ -55,108 +82,114 @@ class WindowedLobe(RadialLobe):
         return {"lobe": self.lobe.spec(), "theta0": self.theta0, "theta1": self.theta1, "near": self.near}
 
 
-def _cap_rows(theta: FloatArray, phi: FloatArray, h: int, w: int,
-              theta_star: float) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """The lat-long pixels whose centres can lie within ``theta_star`` of each direction, as row runs.
+def half_width(lobe: RadialLobe, theta_max: float = math.pi) -> float:
+    """The angle at which the lobe's first channel falls to half its value at the centre (bisection; the lobes
+    here fall monotonically), ``theta_max`` if it never does."""
 
-    For a direction at (theta_d, phi_d), ring i (polar angle theta_i) meets the cap where
-    ``cos(dphi) >= (cos theta* - cos theta_i cos theta_d) / (sin theta_i sin theta_d)`` (spherical law of
-    cosines), i.e. over the columns within ``dphi`` of phi_d; one column of margin on each side (pixels beyond
-    the cap cost a zero kernel value, a pixel left out would be an error). Returns, per (direction, ring) run,
-    the direction, the ring, the first column (may be negative: wraps) and the number of columns (<= W).
-    """
-    dth = np.pi / h
-    i_lo = np.clip(np.ceil((theta - theta_star) / dth - 0.5), 0, h - 1).astype(np.int64)
-    i_hi = np.clip(np.floor((theta + theta_star) / dth - 0.5), 0, h - 1).astype(np.int64)
-    n_rows = np.maximum(i_hi - i_lo + 1, 0)
-    d_of = np.repeat(np.arange(theta.size, dtype=np.int64), n_rows)
-    first = np.cumsum(n_rows) - n_rows
-    ring = i_lo[d_of] + np.arange(d_of.size, dtype=np.int64) - first[d_of]
-    th_r = (ring + 0.5) * dth
-    td = theta[d_of]
-    den = np.sin(th_r) * np.sin(td)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cos_half = (math.cos(theta_star) - np.cos(th_r) * np.cos(td)) / den
-    # a direction on the pole (den = 0) or a cap over the pole (cos_half < -1) takes whole rings
-    whole = (den <= 1e-300) | (cos_half <= -1.0)
-    half = np.arccos(np.clip(np.where(whole, -1.0, cos_half), -1.0, 1.0))
-    x = (phi[d_of] + np.pi) / (2.0 * np.pi) * w - 0.5  # continuous column of the direction
-    c_lo = np.floor(x - half * w / (2.0 * np.pi)).astype(np.int64) - 1
-    c_hi = np.ceil(x + half * w / (2.0 * np.pi)).astype(np.int64) + 1
-    count = np.minimum(c_hi - c_lo + 1, w)
-    c_lo = np.where(whole | (count >= w), 0, c_lo)
-    count = np.where(whole, w, count)
-    return d_of, ring, c_lo, count
+    def u(theta: float) -> float:
+        return float(lobe.u(np.array([math.cos(theta)]))[0, 0])
+
+    peak = u(0.0)
+    if not peak > 0.0 or u(theta_max) >= 0.5 * peak:
+        return theta_max
+    lo, hi = 0.0, theta_max
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if u(mid) >= 0.5 * peak else (lo, mid)
+    return hi
 
 
-def angular_convolution(pixels: NDArray[np.floating], lobe: RadialLobe, dirs: FloatArray, theta_max: float, *,
-                        backend: Literal["jit", "numpy"] = "jit") -> FloatArray:
-    """``B(d) = sum_k L_k dOmega_k u(d . w_k)`` over the pixels within ``theta_max`` of d (where u must vanish
-    beyond), for directions (N, 3): the same pixel quadrature as :func:`brute_force`, restricted to the cap.
+def cap_mass(lobe: RadialLobe, theta_max: float) -> float:
+    """``2 pi int_0^theta_max u(cos theta) sin theta dtheta`` (first channel): Gauss-Legendre on panels graded
+    geometrically from a hundredth of the half width, so that the peak of the narrowest lobe is resolved."""
+    hw = half_width(lobe, theta_max)
+    edges = np.unique(np.concatenate([[0.0], np.geomspace(min(hw, theta_max) * 1e-2, theta_max, 96),
+                                      np.linspace(0.0, theta_max, 65)]))
+    x, wq = np.polynomial.legendre.leggauss(16)
+    a, b = edges[:-1, None], edges[1:, None]
+    theta = (0.5 * (b - a) * x + 0.5 * (a + b)).ravel()
+    weight = (0.5 * (b - a) * wq).ravel()
+    u = np.asarray(lobe.u(np.cos(theta)), dtype=np.float64)[:, 0]
+    return float(2.0 * np.pi * np.sum(u * np.sin(theta) * weight))
 
-    The pixels of the cap come ring by ring (:func:`_cap_rows`); the lobe is tabulated against the chord
-    ``|d - w| = sqrt(2 - 2 d.w)`` (``_KERNEL_TABLE`` nodes, linear interpolation; the narrowest lobe split here
-    spans hundreds of nodes, so the table's error is ~1e-7 of the level, tests/relight/test_cube_chain.py).
-    ``backend="jit"`` sums one direction at a time in compiled code (numba); ``"numpy"`` is the same sum
-    vectorised (ring runs expanded into a CSR matrix per block of directions), the plain reference it is tested
-    against.
-    """
+
+def cell_means(pixels: NDArray[np.floating]) -> FloatArray:
+    """The mean of the bilinear interpolant over each pixel's cell, weighted by solid angle: the separable
+    ``(1/8, 3/4, 1/8)`` in ``phi`` (exact) and, in ``theta``, the weights of the two neighbouring rows over the
+    cell's halves under ``sin theta`` (Gauss-Legendre; rows clamp at the poles, so the first and last rows take no
+    weight from beyond)."""
     env = np.asarray(require_rgb_latlong(pixels), dtype=np.float64)
+    h = env.shape[0]
+    dth = math.pi / h
+    x, wq = np.polynomial.legendre.leggauss(8)
+    frac = 0.25 * (x + 1.0)  # (theta - theta_i) / dth over (0, 1/2)
+    theta_i = (np.arange(h) + 0.5) * dth
+    sa_down = np.sin(theta_i[:, None] + frac * dth) @ wq
+    sa_up = np.sin(theta_i[:, None] - frac * dth) @ wq
+    c_down = (np.sin(theta_i[:, None] + frac * dth) * frac) @ wq / (sa_down + sa_up)
+    c_up = (np.sin(theta_i[:, None] - frac * dth) * frac) @ wq / (sa_down + sa_up)
+    c_up[0] = 0.0
+    c_down[-1] = 0.0
+    up = np.concatenate([env[:1], env[:-1]])
+    down = np.concatenate([env[1:], env[-1:]])
+    rows = (1.0 - c_up - c_down)[:, None, None] * env + c_up[:, None, None] * up + c_down[:, None, None] * down
+    return np.ascontiguousarray(0.75 * rows + 0.125 * (np.roll(rows, 1, axis=1) + np.roll(rows, -1, axis=1)))
+
+
+def angular_convolution(pixels: NDArray[np.floating], lobe: RadialLobe, dirs: FloatArray,
+                        theta_max: float) -> FloatArray:
+    """``B(d) = int u(d . w) L(w) dw`` of the map's bilinear interpolant over the cap ``theta <= theta_max``
+    (where ``u`` must vanish beyond), for directions (N, 3) -> (N, 3) (module docstring).
+
+    Cells come ring by ring (the rows and column runs a cap widened by a pixel can touch); a cell is one midpoint
+    sample (its pixel, its solid angle) where the lobe is smooth on the pixel's scale, else ``m_theta x m_phi``
+    sub-cells (even counts, so that no sub-cell straddles the interpolant's kinks at the pixel centres) with their
+    exact solid angles and the interpolant at their centres; a single sample takes the interpolant's mean over
+    the cell (:func:`cell_means`), so both kinds of cell integrate the same function. The lobe is tabulated
+    against the chord (one-sample cells) and ``sqrt(chord)`` (sub-cells; ``_KERNEL_TABLE`` nodes, linear
+    interpolation). The weights are made to sum to :func:`cap_mass` (module docstring).
+    """
+    env = np.ascontiguousarray(require_rgb_latlong(pixels), dtype=np.float64)
     h, w = env.shape[:2]
     theta_star = min(theta_max, math.pi)
-    weighted = np.ascontiguousarray(env * pixel_solid_angles(h, w)[:, None, None])
     chord_max = 2.0 * math.sin(0.5 * theta_star)
-    grid = np.linspace(0.0, chord_max, _KERNEL_TABLE)
-    table = np.asarray(lobe.u(1.0 - 0.5 * grid * grid), dtype=np.float64)[:, 0]
-    table[-1] = 0.0  # the lobe vanishes at the window's end; chords beyond it add nothing
-    scale = (_KERNEL_TABLE - 1) / chord_max
+    s = np.linspace(0.0, 1.0, _KERNEL_TABLE)
+    tables = []
+    for chord in (chord_max * s, chord_max * s * s):
+        table = np.asarray(lobe.u(1.0 - 0.5 * chord * chord), dtype=np.float64)[:, 0]
+        table[-1] = 0.0  # the lobe vanishes at the window's end; chords beyond it add nothing
+        tables.append(table)
+    below = np.flatnonzero(tables[1] < 0.5 * tables[1][0])
+    hw_angle = 2.0 * math.asin(0.5 * chord[below[0]]) if below.size and tables[1][0] > 0 else theta_star
     theta, phi = dirs_to_angles(dirs)
+    cols = column_phis(w)
     out = np.empty((dirs.shape[0], 3))
-    if backend == "jit":
-        cols = column_phis(w)
-        _near_sum_jit(np.ascontiguousarray(theta), np.ascontiguousarray(phi), weighted, np.cos(cols), np.sin(cols),
-                      table, scale, theta_star, out)
-        return out
-    if backend != "numpy":
-        raise InputError(f"unknown backend {backend!r}; use 'jit' or 'numpy'")
-    pix_dirs = latlong_dirs(h, w).reshape(-1, 3)
-    flat = weighted.reshape(-1, 3)
-    slope = np.diff(table)
-    d_of, ring, c_lo, count = _cap_rows(theta, phi, h, w, theta_star)
-    per_dir = np.bincount(d_of, weights=count, minlength=dirs.shape[0]).astype(np.int64)
-    run_end = np.cumsum(np.bincount(d_of, minlength=dirs.shape[0]))  # the runs of directions < k end here
-    pair_end = np.cumsum(per_dir)
-    start = 0
-    while start < dirs.shape[0]:
-        base = pair_end[start - 1] if start else 0
-        stop = max(start + 1, int(np.searchsorted(pair_end, base + _PAIRS_PER_BLOCK, side="right")))
-        r0 = run_end[start - 1] if start else 0
-        r1 = run_end[stop - 1]
-        cnt = count[r0:r1]
-        offs = np.repeat(np.cumsum(cnt) - cnt, cnt)
-        col = np.repeat(c_lo[r0:r1], cnt) + np.arange(offs.size, dtype=np.int64) - offs
-        pix = np.repeat(ring[r0:r1] * w, cnt) + np.mod(col, w)
-        dd = np.repeat(dirs[d_of[r0:r1]], cnt, axis=0)
-        t = np.einsum("ij,ij->i", dd, pix_dirs[pix])
-        x = np.minimum(np.sqrt(np.maximum(2.0 - 2.0 * t, 0.0)) * scale, _KERNEL_TABLE - 1.0)
-        node = np.minimum(x.astype(np.int64), _KERNEL_TABLE - 2)
-        kern = table[node] + (x - node) * slope[node]
-        indptr = np.concatenate([[0], np.cumsum(per_dir[start:stop])])
-        out[start:stop] = csr_matrix((kern, pix, indptr), shape=(stop - start, h * w)) @ flat
-        start = stop
+    _near_sum_jit(np.ascontiguousarray(theta), np.ascontiguousarray(phi), env, cell_means(env), np.cos(cols),
+                  np.sin(cols), tables[0], tables[1], chord_max, theta_star, hw_angle, cap_mass(lobe, theta_star),
+                  NEAR_SUB_PER_SCALE, NEAR_MAX_SUB, out)
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _near_sum_jit(theta: FloatArray, phi: FloatArray, weighted: FloatArray, cos_col: FloatArray,
-                  sin_col: FloatArray, table: FloatArray, scale: float, theta_star: float, out: FloatArray) -> None:
-    """:func:`angular_convolution`'s sum, one direction at a time: the ring runs of :func:`_cap_rows` (the same
-    margins) with the same tabulated lobe, ``t = cos a cos b + sin a sin b cos(dphi)`` from per-column tables."""
-    h, w = weighted.shape[0], weighted.shape[1]
+def _near_sum_jit(theta: FloatArray, phi: FloatArray, env: FloatArray, means: FloatArray, cos_col: FloatArray,
+                  sin_col: FloatArray, table: FloatArray, fine: FloatArray, chord_max: float, theta_star: float,
+                  hw_angle: float, mass: float, sub_per_scale: float, max_sub: int, out: FloatArray) -> None:
+    """:func:`angular_convolution`'s sum, one direction at a time."""
+    h, w = env.shape[0], env.shape[1]
     dth = math.pi / h
     dph = 2.0 * math.pi / w
-    cos_star = math.cos(theta_star)
     last = table.shape[0] - 1
+    inv_chord = 1.0 / chord_max
+    cos_star = math.cos(theta_star)
+    # cos and sin of the sub-columns' azimuths relative to their pixel's centre, per sub-division count
+    # a lobe the finest sub-cells resolve is scaled to its mass; a narrower one gives the missing mass to L(d)
+    resolved = hw_angle * max_sub >= sub_per_scale * max(dth, dph)
+    off_c = np.ones((max_sub + 1, max_sub))
+    off_s = np.zeros((max_sub + 1, max_sub))
+    for m in range(1, max_sub + 1):
+        for q in range(m):
+            off_c[m, q] = math.cos(((q + 0.5) / m - 0.5) * dph)
+            off_s[m, q] = math.sin(((q + 0.5) / m - 0.5) * dph)
     for n in range(theta.shape[0]):
         ctd, std = math.cos(theta[n]), math.sin(theta[n])
         cpd, spd = math.cos(phi[n]), math.sin(phi[n])
@@ -164,10 +197,19 @@ def _near_sum_jit(theta: FloatArray, phi: FloatArray, weighted: FloatArray, cos_
         i_lo = max(0, int(math.ceil((theta[n] - theta_star) / dth - 0.5)))
         i_hi = min(h - 1, int(math.floor((theta[n] + theta_star) / dth - 0.5)))
         acc0 = acc1 = acc2 = 0.0
+        wsum = 0.0
         for i in range(i_lo, i_hi + 1):
-            th_r = (i + 0.5) * dth
+            t_top, t_bot = i * dth, (i + 1) * dth
+            th_r = t_top + 0.5 * dth
             a = ctd * math.cos(th_r)
             b = std * math.sin(th_r)
+            sin_max = 1.0 if t_top <= 0.5 * math.pi <= t_bot else max(math.sin(t_top), math.sin(t_bot))
+            half_diag = 0.5 * math.sqrt(dth * dth + (sin_max * dph) ** 2)
+            cell_sa = dph * (math.cos(t_top) - math.cos(t_bot))
+            # a cell is one sample when the lobe's scale there, max(half width, distance), spans sub_per_scale
+            # times its longer side: always if the half width does, else beyond the distance rho_one
+            side = sub_per_scale * max(dth, sin_max * dph)
+            cos_one = 2.0 if hw_angle >= side else math.cos(min(side + half_diag, math.pi))
             c_lo, count = 0, w
             if b > 1e-300:
                 cos_half = (cos_star - a) / b
@@ -179,28 +221,95 @@ def _near_sum_jit(theta: FloatArray, phi: FloatArray, weighted: FloatArray, cos_
                         c_lo = 0
             for k in range(count):
                 j = (c_lo + k) % w
-                t = a + b * (cpd * cos_col[j] + spd * sin_col[j])
-                x = math.sqrt(max(2.0 - 2.0 * t, 0.0)) * scale
-                if x >= last:
+                t_c = a + b * (cpd * cos_col[j] + spd * sin_col[j])
+                if t_c <= cos_one:  # one midpoint sample: the pixel at its centre
+                    x = math.sqrt(max(2.0 - 2.0 * t_c, 0.0)) * inv_chord * last
+                    if x >= last:
+                        continue
+                    node = int(x)
+                    kv = (table[node] + (x - node) * (table[node + 1] - table[node])) * cell_sa
+                    wsum += kv
+                    acc0 += kv * means[i, j, 0]
+                    acc1 += kv * means[i, j, 1]
+                    acc2 += kv * means[i, j, 2]
                     continue
-                node = int(x)
-                kv = table[node] + (x - node) * (table[node + 1] - table[node])
-                acc0 += kv * weighted[i, j, 0]
-                acc1 += kv * weighted[i, j, 1]
-                acc2 += kv * weighted[i, j, 2]
-        out[n, 0] = acc0
-        out[n, 1] = acc1
-        out[n, 2] = acc2
+                scale = max(hw_angle, math.acos(min(1.0, max(-1.0, t_c))) - half_diag)
+                # even counts (>= 2 on both sides): the sub-cells meet at the pixel's centre lines, where the
+                # interpolant has its kinks, and take their share of the neighbours' values as the means do
+                m_t = math.ceil(sub_per_scale * dth / scale)
+                m_p = math.ceil(sub_per_scale * sin_max * dph / scale)
+                m_t = min(max_sub, max(2, m_t + (m_t & 1)))
+                m_p = min(max_sub, max(2, m_p + (m_p & 1)))
+                cdj = cpd * cos_col[j] + spd * sin_col[j]  # cos and sin of the pixel's azimuth from d's
+                sdj = cpd * sin_col[j] - spd * cos_col[j]
+                for p in range(m_t):
+                    fy = (p + 0.5) / m_t - 0.5
+                    ths = th_r + fy * dth
+                    sa = (dph / m_p) * (math.cos(ths - 0.5 * dth / m_t) - math.cos(ths + 0.5 * dth / m_t))
+                    ca = ctd * math.cos(ths)
+                    cb = std * math.sin(ths)
+                    y = min(max(i + fy, 0.0), h - 1.0)
+                    y0 = min(int(y), max(h - 2, 0))
+                    gy = y - y0
+                    y1 = min(y0 + 1, h - 1)
+                    for q in range(m_p):
+                        fx = (q + 0.5) / m_p - 0.5
+                        t = ca + cb * (cdj * off_c[m_p, q] - sdj * off_s[m_p, q])
+                        x = math.sqrt(math.sqrt(max(2.0 - 2.0 * t, 0.0)) * inv_chord) * last
+                        if x >= last:
+                            continue
+                        node = int(x)
+                        kv = (fine[node] + (x - node) * (fine[node + 1] - fine[node])) * sa
+                        xf = j + fx
+                        x0f = math.floor(xf)
+                        gx = xf - x0f
+                        x0 = int(x0f) % w
+                        x1 = (x0 + 1) % w
+                        wsum += kv
+                        gx1, gy1 = 1.0 - gx, 1.0 - gy
+                        w00, w01, w10, w11 = kv * gx1 * gy1, kv * gx * gy1, kv * gx1 * gy, kv * gx * gy
+                        acc0 += (w00 * env[y0, x0, 0] + w01 * env[y0, x1, 0]
+                                 + w10 * env[y1, x0, 0] + w11 * env[y1, x1, 0])
+                        acc1 += (w00 * env[y0, x0, 1] + w01 * env[y0, x1, 1]
+                                 + w10 * env[y1, x0, 1] + w11 * env[y1, x1, 1])
+                        acc2 += (w00 * env[y0, x0, 2] + w01 * env[y0, x1, 2]
+                                 + w10 * env[y1, x0, 2] + w11 * env[y1, x1, 2])
+        # unit mass (module docstring): scaled to the lobe's mass, or, for a lobe the sub-cells do not resolve,
+        # the mass they miss given to the interpolant at d. Every weight stays positive.
+        yd = min(max(theta[n] / dth - 0.5, 0.0), h - 1.0)
+        r0 = min(int(yd), max(h - 2, 0))
+        r1 = min(r0 + 1, h - 1)
+        gy = yd - r0
+        c0f = math.floor(x_d)
+        gx = x_d - c0f
+        c0 = int(c0f) % w
+        c1 = (c0 + 1) % w
+        rest = 0.0 if resolved else max(mass - wsum, 0.0)
+        norm = mass / wsum if wsum > 0.0 and (resolved or wsum > mass) else 1.0
+        for c in range(3):
+            ld = ((env[r0, c0, c] * (1.0 - gx) + env[r0, c1, c] * gx) * (1.0 - gy)
+                  + (env[r1, c0, c] * (1.0 - gx) + env[r1, c1, c] * gx) * gy)
+            acc = acc0 if c == 0 else (acc1 if c == 1 else acc2)
+            out[n, c] = acc * norm + rest * ld
 
 
-def brute_force(pixels: NDArray[np.floating], lobe: RadialLobe, dirs: FloatArray, *, chunk: int = 64) -> FloatArray:
-    """The dense reference: every pixel of the map for every direction (tests only; O(N H W))."""
+def brute_force(pixels: NDArray[np.floating], lobe: RadialLobe, dirs: FloatArray, *,
+                oversample: int | None = None) -> FloatArray:
+    """The dense reference (tests and benchmarks; O(N H W m^2)): ``sum_s u(d . w_s) L(w_s) dOmega_s`` over every
+    cell of the map upsampled ``m`` x ``m`` (module docstring). ``m`` (even, so that the fine cells do not
+    straddle the interpolant's kinks) defaults to ``REF_SUB_PER_HALF_WIDTH`` samples across the lobe's half
+    width, at least 2."""
     env = np.asarray(require_rgb_latlong(pixels), dtype=np.float64)
     h, w = env.shape[:2]
-    pix = latlong_dirs(h, w).reshape(-1, 3)
-    weighted = (env * pixel_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
+    if oversample is None:
+        need = REF_SUB_PER_HALF_WIDTH * (math.pi / h) / half_width(lobe)
+        oversample = max(2, 2 * math.ceil(0.5 * need))
+    m = int(oversample)
+    fine = latlong_dirs(h * m, w * m).reshape(-1, 3)
+    values = sample_latlong(env[None], fine)[:, 0, :] * np.repeat(pixel_solid_angles(h * m, w * m), w * m)[:, None]
     out = np.empty((dirs.shape[0], 3))
+    chunk = max(1, _REF_BLOCK // fine.shape[0])
     for s in range(0, dirs.shape[0], chunk):
-        kern = np.asarray(lobe.u(dirs[s:s + chunk] @ pix.T), dtype=np.float64)[..., 0]
-        out[s:s + chunk] = kern @ weighted
+        kern = np.asarray(lobe.u(dirs[s:s + chunk] @ fine.T), dtype=np.float64)[..., 0]
+        out[s:s + chunk] = kern @ values
     return out

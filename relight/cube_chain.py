@@ -14,18 +14,23 @@ its split-sum GGX lobe (:class:`relight.brdf.splitsum.GGXSplitSum`) at the rough
 ``maxLod`` is the chain's last level (levels halve the face size down to 1 x 1 by default). Each level is
 computed exactly where it is cheap and exact:
 
-* ``r = 0`` (level 0): the mirror lobe, the map itself bilinearly sampled at the texel centres;
+* ``r = 0`` (level 0): the mirror lobe, the cube copy of the map three's PMREMGenerator makes (r187
+  ``PMREMEquirectangularToCubemap``, which its level 0 is): per texel the mean of four bilinear samples a quarter
+  texel from its centre along both face axes;
 * a lobe the map's pixels resolve in frequency space (the order its energy tolerance needs, seed 000 §5.1, is
   below the map's H rings): one lighting projection (the largest order of all such levels, shared), the exact SH
   convolution ``B_lm = Lambda_l rho_l L_lm`` and SH synthesis directly at the texel directions (no lat-long to
   cube resampling); its predicted error is the App. B bound of that level's orders;
 * a lobe sharper than a quarter of the orders the map resolves (GGX at small roughness: a peak narrower than a
   pixel *and* heavy ~ 1/theta^4 tails, so neither path alone works): split by a raised-cosine window into a
-  near part, summed directly over the pixels within a few pixel widths (sparse, exact pixel quadrature), and a
-  smooth far part, which the SH path resolves at a moderate order. The two parts sum to the lobe exactly.
+  near part, integrated directly over the map's bilinear interpolant within a few pixel widths
+  (:func:`relight.cap_convolution.angular_convolution`: a midpoint rule refined where the lobe varies inside a
+  pixel, rescaled to the near part's exact mass, so that a lobe narrower than a pixel is a unit-mass average of
+  the map next to the texel, never outside the map's range), and a smooth far part, which the SH path resolves
+  at a moderate order. The two parts sum to the lobe exactly.
 
-:func:`relight.cap_convolution.brute_force` is the plain dense sum over every pixel that tests compare all three
-against; the near part's pixel sum is :func:`relight.cap_convolution.angular_convolution`.
+:func:`relight.cap_convolution.brute_force` (the same integral on a finer grid over the whole sphere, not
+normalised) is the reference tests compare all three against.
 
 ``brdf`` (``--brdf SPEC``) replaces the split-sum lobe by another family's lobe at view = normal
 (:mod:`relight.brdf.normal_view`): each level is then a mirror weight times the sampled map plus one lobe per lobe
@@ -54,6 +59,7 @@ from relight.conventions import (
     sample_latlong,
 )
 from relight.envmap import cube_face_dirs
+from relight.envmap.cubemap import _face_uv_to_dirs
 from relight.errors import InputError
 from relight.prefilter import choose_orders, project_lighting
 
@@ -87,6 +93,20 @@ FAR_EPSILON_CAP = 0.05
 SPLIT_FRACTION = 4
 #: Largest face size a chain accepts (6 x 4096^2 x RGB float32 is 1.2 GB).
 MAX_FACE_SIZE = 4096
+
+
+def mirror_level(pixels: NDArray[np.floating], size: int) -> FloatArray:
+    """Level 0 (r = 0) as three r187's PMREM makes it (module docstring): (6 * size^2, 3), OpenGL face order."""
+    g = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    quarter = 0.5 / size  # a quarter of a texel (2 / size wide in a = 2 s - 1)
+    env = np.asarray(pixels, dtype=np.float64)[None]
+    faces = np.arange(6)[:, None, None]
+    total = np.zeros((6 * size * size, 3))
+    for db in (-quarter, quarter):
+        for da in (-quarter, quarter):
+            dirs = _face_uv_to_dirs(g[None, :, None] + db, g[None, None, :] + da, faces).reshape(-1, 3)
+            total += sample_latlong(env, dirs)[:, 0]
+    return 0.25 * total
 
 
 def level_roughness(levels: int, mapping: Mapping, size: int | None = None) -> FloatArray:
@@ -235,7 +255,7 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
         rms = bound = theta1 = 0.0
         method: Method = "sample"
         if np.any(mirror != 0.0):
-            sampled = sample_latlong(np.asarray(pixels, dtype=np.float64)[None], dirs)[:, 0]
+            sampled = mirror_level(pixels, s)
             faces = sampled if np.all(mirror == 1.0) else faces + mirror[None, :] * sampled
         for p in passes:
             part = np.zeros_like(faces)

@@ -1,9 +1,11 @@
 """Prefiltered cube chains (relight.cube_chain) against the dense angular brute force of the same lobe.
 
 The issue's criterion: every mip level within 1 % relative RMS (Rec. 709 luminance, over all texels) of the
-brute force of that level's split-sum GGX lobe at the texel directions. Both sides integrate the same pixels
-(pixel-centre quadrature), so the only differences are the chain's SH truncation and, for split levels, nothing
-else: the near part is the same pixel sum. Maps: a synthetic sky with a 1e4 sun (the hard case) and a real map.
+brute force of that level's split-sum GGX lobe at the texel directions. The brute force
+(relight.cap_convolution.brute_force) integrates the map's bilinear interpolant on a grid finer than the lobe,
+over the whole sphere and without normalisation, so a chain that mis-weights a lobe narrower than a pixel shows
+against it. Maps: a synthetic sky with a 1e4 sun (the hard case), a real map, and an octant-coloured map whose
+levels must stay within its range (a unit-mass positive lobe cannot leave it).
 """
 
 from __future__ import annotations
@@ -16,8 +18,8 @@ import pytest
 from sky_refs import sun_sky
 
 from relight.brdf.splitsum import GGXSplitSum
-from relight.cap_convolution import brute_force
-from relight.conventions import LUMINANCE_WEIGHTS
+from relight.cap_convolution import WindowedLobe, angular_convolution, brute_force, cap_mass
+from relight.conventions import LUMINANCE_WEIGHTS, latlong_dirs
 from relight.cube_chain import BABYLON_LOD_SCALE, TARGET_MAPPING, level_roughness, prefilter_chain
 from relight.envmap import cube_face_dirs, read_envmap
 from relight.errors import InputError
@@ -80,6 +82,35 @@ def test_every_level_matches_the_brute_force(name: str, pixels: object, size: in
         assert err <= LEVEL_RMS, (name, target, lv.level, lv.method, err)
         # App. B is a bound: it must hold (the prediction is only a heuristic)
         assert err <= lv.bound_rms + 1e-6, (name, lv.level, err, lv.bound_rms)
+
+
+def octant_map(h: int) -> np.ndarray:
+    d = latlong_dirs(h, 2 * h)
+    return np.stack([np.where(d[..., k] > 0, 1.0, 0.05) for k in range(3)], axis=-1)
+
+
+@pytest.mark.parametrize(("h", "size"), [(32, 16), (64, 64)])
+def test_octant_levels_stay_within_the_maps_range(h: int, size: int) -> None:
+    # values in [0.05, 1]: a normalised positive lobe keeps every texel there. Before the near part was
+    # normalised, level 1 of the 64-row map at size 64 (r = 0.087, a lobe a tenth of a pixel wide) reached 3.47.
+    # The near part alone is held to the exact range (its weights are positive and sum to its mass); the whole
+    # level may ring by its SH part's truncation (the far part, or the whole lobe on "sh" levels: predicted 0.5 %
+    # relative RMS, so 2 % of the range at a texel, four times that); and every level within 1 % of the brute force.
+    px = octant_map(h)
+    chain = prefilter_chain(px, target="three", size=size)
+    assert any(lv.method == "split" and lv.roughness < 0.15 for lv in chain.levels)  # a lobe < 1/4 pixel
+    for lv in chain.levels:
+        faces = lv.faces.reshape(-1, 3).astype(np.float64)
+        assert faces.max() <= 1.0 + 0.02 * 0.95 and faces.min() >= 0.05 - 0.02 * 0.95, (lv.level, lv.method)
+        if lv.method == "sample":
+            continue
+        dirs = cube_face_dirs(lv.size).reshape(-1, 3)
+        lobe = GGXSplitSum(lv.roughness, max_roughness=3.0)
+        if lv.method == "split":
+            near = WindowedLobe(lobe, 0.5 * lv.near_angle, lv.near_angle, near=True)
+            part = angular_convolution(px, near, dirs, lv.near_angle) / cap_mass(near, lv.near_angle)
+            assert part.max() <= 1.0 + 1e-12 and part.min() >= 0.05 - 1e-12, lv.level
+        assert rel_rms(faces, brute_force(px, lobe, dirs)) <= LEVEL_RMS, lv.level
 
 
 def test_level_zero_is_the_map_itself() -> None:
