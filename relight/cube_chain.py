@@ -52,7 +52,7 @@ from relight.brdf.base import RadialLobe
 from relight.brdf.coefficients import radial_transfer, spectrum_for_tolerance
 from relight.brdf.normal_view import ChainBrdf, ChannelLobe
 from relight.brdf.splitsum import MIN_ROUGHNESS, GGXSplitSum
-from relight.cap_convolution import WindowedLobe, angular_convolution
+from relight.cap_convolution import WindowedLobe, angular_convolution, cell_means
 from relight.conventions import (
     dirs_to_angles,
     require_rgb_latlong,
@@ -242,7 +242,8 @@ def prefilter_chain(pixels: NDArray[np.floating], *, target: str = "three", size
 
     f_light = max((p.order for ps in plans for p in ps if p.sh_lobe is not None), default=0)
     t1 = time.perf_counter()
-    lighting = project_lighting(pixels, f_light) if f_light > 0 else None
+    # the pixel sums of the interpolant's cell means: the SH parts integrate the same function as the near parts
+    lighting = project_lighting(cell_means(pixels), f_light) if f_light > 0 else None
     timings["lighting_projection"] = time.perf_counter() - t1
 
     out: list[ChainLevel] = []
