@@ -56,8 +56,8 @@ _KERNEL_TABLE = 16384
 #: (second order; tests/relight/test_cap_convolution.py holds the convergence).
 NEAR_SUB_PER_SCALE = 4.0
 NEAR_MAX_SUB = 8
-#: The reference's fine grid: this many fine cells (2 x 2 Gauss nodes each) across the lobe's half width, and at
-#: least 2 per pixel side.
+#: The reference's fine grid: this many Gauss nodes across the lobe's half width (2 per fine cell side), and at
+#: least 2 fine cells per pixel side.
 REF_SUB_PER_HALF_WIDTH = 3.0
 #: Elements of the reference's (directions x fine cells) kernel block (bounds its memory to ~ 50 bytes x this).
 _REF_BLOCK = 4_000_000
@@ -318,14 +318,15 @@ def brute_force(pixels: NDArray[np.floating], lobe: RadialLobe, dirs: FloatArray
     cells cut ``m`` x ``m`` (module docstring), each fine cell integrated by the 2 x 2 Gauss-Legendre product rule
     in ``(theta, phi)`` with the weight ``sin theta`` (``w_s``), the interpolant at the nodes. ``m`` (even, so that
     no fine cell straddles the interpolant's kinks at the pixel centres: it is bilinear in each) defaults to
-    ``REF_SUB_PER_HALF_WIDTH`` fine cells across the lobe's half width, at least 2. (The midpoint rule at the fine
-    cells' centres is second order only: beside a sun its cross term ``u' L' h^3 / 12`` per cell left the
-    reference 0.7 % off at m = 2 for Phong s = 64 on a 32-row map; this rule is 4th order in ``h / m``.)"""
+    ``REF_SUB_PER_HALF_WIDTH`` nodes across the lobe's half width, at least 2 fine cells per pixel side. (The
+    midpoint rule at the fine cells' centres is second order only: beside a sun its cross term ``u' L' h^3 / 12``
+    per cell left the reference 0.7 % off at m = 2 for Phong s = 64 on a 32-row map; this rule is 4th order in
+    ``h / m``: 0.0065 % there.)"""
     env = np.asarray(require_rgb_latlong(pixels), dtype=np.float64)
     h, w = env.shape[:2]
     if oversample is None:
-        need = REF_SUB_PER_HALF_WIDTH * (math.pi / h) / half_width(lobe)
-        oversample = max(2, 2 * math.ceil(0.5 * need))
+        need = REF_SUB_PER_HALF_WIDTH * (math.pi / h) / half_width(lobe)  # nodes per pixel side, 2 per fine cell
+        oversample = max(2, 2 * math.ceil(0.25 * need))
     m = int(oversample)
     x, wq = np.polynomial.legendre.leggauss(2)
     theta = ((np.arange(h * m)[:, None] + 0.5 * (x + 1.0)) * (math.pi / (h * m))).ravel()

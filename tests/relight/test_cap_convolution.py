@@ -41,8 +41,9 @@ def test_near_sum_equals_the_dense_reference(roughness: float, theta1_pixels: fl
     rtol = 2e-2 if roughness < 0.1 else 1e-2
     np.testing.assert_allclose(got, ref, rtol=rtol, atol=1e-3 * np.abs(ref).max())
     # the reference is not normalised: its weights on a constant map are its quadrature of the lobe's mass.
-    # Away from the poles a 2-D midpoint rule with 3 cells per half width; on a pole the rings make it a 1-D rule
-    # in theta with spacing hw / 3, error ~ (1/3)^2 / 24 |hw^2 u''/u| ~ 5e-3 of the mass at most.
+    # Away from the poles a 2-D Gauss rule with 3 nodes per half width (4th order: below the 5e-4 a midpoint rule
+    # at that spacing gave); on a pole the rings make it a 1-D rule in theta, held to the midpoint's ~ (1/3)^2 / 24
+    # |hw^2 u''/u| ~ 5e-3 of the mass.
     ones = brute_force(np.ones_like(px), lobe, dirs)
     np.testing.assert_allclose(ones[:-4], cap_mass(lobe, theta1), rtol=5e-4)
     np.testing.assert_allclose(ones[-4:], cap_mass(lobe, theta1), rtol=5e-3)
