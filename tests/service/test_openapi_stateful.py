@@ -224,7 +224,11 @@ def test_stateful_links(fuzz_schema: schemathesis.BaseSchema, keyed: Server) -> 
     seen: Counter[tuple[str, str, int]] = Counter()
     server_errors: list[str] = []
     scenarios = [0]
-    base = fuzz_schema.as_state_machine()
+    # Event streams stay open while their job runs (minutes for a fuzzed /dfg?size=1024) and schemathesis reads a
+    # stream to its end: its own link inference (Location: /jobs/{id}) reached GET /jobs/{id}/events and held the
+    # run for over 15 minutes in CI. The streams have their own tests (tests/service/routes/test_jobs.py,
+    # test_jobs_kinds.py); here they are left out, as add_links leaves them out.
+    base = fuzz_schema.exclude(path_regex=r"/events$").as_state_machine()
 
     class Workflow(base):  # type: ignore[misc, valid-type]
         def setup(self) -> None:
