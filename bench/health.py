@@ -16,6 +16,11 @@ Starts ``relight serve`` (embedded cluster, two worker processes) on a fresh dat
    ``/health`` p99 near this floor is the machine's, not the server's. And the server's event-loop thread: CPU
    seconds it ran and seconds it waited for a CPU (``/proc/PID/task/PID/schedstat``).
 
+4. **The garbage collector.** Each setting of ``--freeze`` (default both, side by side in one run: ``on`` is the
+   server's default, ``off`` sets ``RELIGHT_GC_FREEZE=0``) starts its own server; after the load, the server's
+   ``/metrics`` says how many full (generation 2) collections ran, how long they stopped it in all and at most
+   (bucket bound), and how many objects start-up froze out of the collector's scans.
+
 Prints a markdown table and writes JSON, with the machine's load average. Not a test: numbers depend on the machine.
 """
 
@@ -149,34 +154,67 @@ async def run(url: str, env: str, clients: int, seconds: float, server_pid: int)
             "loadavg": list(os.getloadavg())}
 
 
+def gc_pauses(url: str) -> dict[str, Any]:
+    """Full collections since start-up from the server's ``/metrics``: count, total seconds, the smallest bucket
+    bound that holds the longest, and the frozen objects."""
+    import re
+
+    text = httpx.get(f"{url}/metrics", timeout=30).text
+    val: dict[str, float] = {}
+    for m in re.finditer(r'^relight_gc_pause_seconds_(sum|count)\{generation="2"\} (\S+)$', text, re.M):
+        val[m[1]] = float(m[2])
+    buckets = [(float(m[1]), float(m[2])) for m in re.finditer(
+        r'^relight_gc_pause_seconds_bucket\{generation="2",le="([0-9.e+-]+)"\} (\S+)$', text, re.M)]
+    longest = next((le for le, n in buckets if n >= val["count"]), float("inf"))
+    frozen = re.search(r"^relight_gc_frozen_objects (\S+)$", text, re.M)
+    assert frozen is not None, text[-2000:]
+    return {"full_collections": int(val["count"]), "full_seconds": round(val["sum"], 3),
+            "longest_at_most_ms": longest * 1000, "frozen_objects": int(float(frozen[1]))}
+
+
+def one(freeze: bool, clients: int, seconds: float) -> dict[str, Any]:
+    with tempfile.TemporaryDirectory(prefix="relight-health-bench-") as tmp:
+        server = start_server(Path(tmp), {"RELIGHT_MAX_ACTIVE_JOBS": "64", "RELIGHT_GC_FREEZE": str(int(freeze))})
+        try:
+            with httpx.Client(base_url=server.url, timeout=60) as http:
+                r = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=5), Path(tmp)))
+                env = r.json()["id"]
+            res = asyncio.run(run(server.url, env, clients, seconds, server.pid))
+            res["gc"] = gc_pauses(server.url)
+        finally:
+            server.stop()
+    return res
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--clients", type=int, default=16)
     ap.add_argument("--seconds", type=float, default=30.0)
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "health.json")
+    ap.add_argument("--freeze", default="on,off", help="gc.freeze at start-up: on, off or both (on,off)")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory(prefix="relight-health-bench-") as tmp:
-        server = start_server(Path(tmp), {"RELIGHT_MAX_ACTIVE_JOBS": "64"})
-        try:
-            with httpx.Client(base_url=server.url, timeout=60) as http:
-                r = http.post("/envmaps", content=exr_bytes(make_envmap(32, seed=5), Path(tmp)))
-                env = r.json()["id"]
-            res = asyncio.run(run(server.url, env, args.clients, args.seconds, server.pid))
-        finally:
-            server.stop()
-    res["clients"] = args.clients
-    res["seconds"] = args.seconds
+    modes = [m.strip() for m in args.freeze.split(",")]
+    assert set(modes) <= {"on", "off"}, args.freeze
+    runs = {f"freeze_{m}": one(m == "on", args.clients, args.seconds) for m in modes}
+    out = {"clients": args.clients, "seconds": args.seconds, "runs": runs}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(res, indent=2))
-    print("| /health (or the floor) | calls | p50 ms | p99 ms | max ms | over 100 ms |")
-    print("|---|---|---|---|---|---|")
-    for name in ("idle", "loaded", "loaded_in_client_loop", "wakeup_delay"):
-        s = res[name]
-        print(f"| {name} | {s['calls']} | {s['p50_ms']} | {s['p99_ms']} | {s['max_ms']} | {s['over_100ms']} |")
-    loop = res["server_loop_thread"]
-    print(f"\n{args.clients} load clients for {args.seconds} s: {res['load_requests']}; load average "
-          f"{', '.join(f'{x:.1f}' for x in res['loadavg'])}; the server's event-loop thread ran {loop['ran_s']} s "
-          f"and waited {loop['waited_for_cpu_s']} s for a CPU")
+    args.out.write_text(json.dumps(out, indent=2))
+    print("| server | /health (or the floor) | calls | p50 ms | p99 ms | max ms | over 100 ms |")
+    print("|---|---|---|---|---|---|---|")
+    for mode, res in runs.items():
+        for name in ("idle", "loaded", "loaded_in_client_loop", "wakeup_delay"):
+            s = res[name]
+            print(f"| {mode} | {name} | {s['calls']} | {s['p50_ms']} | {s['p99_ms']} | {s['max_ms']} | "
+                  f"{s['over_100ms']} |")
+    print("\n| server | full collections | their seconds | longest (at most) ms | frozen objects | loop ran s | "
+          "loop waited for a CPU s | load requests | load average |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for mode, res in runs.items():
+        g, loop = res["gc"], res["server_loop_thread"]
+        print(f"| {mode} | {g['full_collections']} | {g['full_seconds']} | {g['longest_at_most_ms']:g} | "
+              f"{g['frozen_objects']} | {loop['ran_s']} | {loop['waited_for_cpu_s']} | {res['load_requests']} | "
+              f"{', '.join(f'{x:.1f}' for x in res['loadavg'])} |")
+    print(f"\n{args.clients} load clients for {args.seconds} s per server")
     return 0
 
 

@@ -55,6 +55,9 @@ class Settings(BaseSettings):
                                 "says degraded")
     health_interval_s: float = Field(1.0, gt=0, le=60, description="seconds between the background health probes "
                                      "(database, scheduler, disk) that /health answers from")
+    gc_freeze: bool = Field(True, description="freeze the objects alive at start-up out of the garbage collector's "
+                            "scans (relight.server.run.settle_heap); off only to measure what it buys "
+                            "(bench/health.py)")
     max_active_jobs: int = Field(64, ge=1, description="queued + running jobs; more answer 429")
     decode_timeout_s: float = Field(120.0, gt=0, description="time limit for decoding one upload in a worker")
     blob_cache_bytes: int = Field(256 * MiB, ge=0, description="verified result bytes kept in memory for GETs")

@@ -136,4 +136,5 @@ class Services:
         await self.calibration.close()
         await self.cluster.close()
         self.plans.pool.close()
+        self.metrics.gc.stop()
         self.db.dispose()

@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import bisect
+import gc
+import time
 from collections import Counter
+from typing import Any
 
 #: Histogram buckets for job durations, seconds.
 BUCKETS = (0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0)
+#: Histogram buckets for garbage-collector pauses, seconds (a pause holds the GIL: nothing in the process runs).
+GC_BUCKETS = (0.001, 0.005, 0.01, 0.02, 0.05, 0.1, 0.25, 1.0)
 
 
 class Histogram:
@@ -33,11 +38,48 @@ class Histogram:
         return out
 
 
+class GcPauses:
+    """How long each of the cyclic garbage collector's collections stopped this process, per generation, once
+    :meth:`start` has registered the ``gc`` callback (the server process: :func:`relight.server.run.settle_heap`)."""
+
+    def __init__(self) -> None:
+        self.by_generation = [Histogram(GC_BUCKETS) for _ in range(3)]
+        self._t0 = 0.0
+
+    def _callback(self, phase: str, info: dict[str, Any]) -> None:
+        if phase == "start":
+            self._t0 = time.perf_counter()
+        else:
+            self.by_generation[info["generation"]].observe(time.perf_counter() - self._t0)
+
+    def start(self) -> None:
+        if self._callback not in gc.callbacks:
+            gc.callbacks.append(self._callback)
+
+    def stop(self) -> None:
+        if self._callback in gc.callbacks:
+            gc.callbacks.remove(self._callback)
+
+    def lines(self) -> list[str]:
+        out = ["# HELP relight_gc_pause_seconds Collections of the cyclic garbage collector in the API process "
+               "by generation, and how long each stopped it.",
+               "# TYPE relight_gc_pause_seconds histogram"]
+        for generation, h in enumerate(self.by_generation):
+            out += [line.replace("{", f'{{generation="{generation}",', 1) if "{" in line
+                    else line.replace(" ", f'{{generation="{generation}"}} ', 1)
+                    for line in h.lines("relight_gc_pause_seconds")]
+        out += ["# HELP relight_gc_frozen_objects Objects alive at start-up, kept out of the collector's scans "
+                "(gc.freeze).", "# TYPE relight_gc_frozen_objects gauge",
+                f"relight_gc_frozen_objects {gc.get_freeze_count()}"]
+        return out
+
+
 class Metrics:
     def __init__(self) -> None:
         self.counters: Counter[str] = Counter()
         self.job_seconds = Histogram()
         self.compute_seconds = Histogram()
+        self.gc = GcPauses()
 
     def inc(self, name: str, n: int = 1) -> None:
         self.counters[name] += n
@@ -72,4 +114,5 @@ class Metrics:
         lines += self.compute_seconds.lines("relight_job_compute_seconds")
         lines += ["# HELP relight_workers Dask workers connected.", "# TYPE relight_workers gauge",
                   f"relight_workers {workers}"]
+        lines += self.gc.lines()
         return "\n".join(lines) + "\n"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import httpx
 import pytest
 
@@ -64,3 +66,9 @@ def test_metrics_and_health(http: httpx.Client, database: Backend) -> None:
         assert name in text, name
     h = http.get("/health").json()
     assert h["status"] == "ok" and h["workers"] == 2 and h["database"] == database.name
+    # start-up froze its objects out of the garbage collector's scans (relight.server.run.settle_heap): 0 without
+    # it; a server with FastAPI, SQLAlchemy, NumPy and a Dask scheduler loaded holds well over 50 000 objects
+    frozen = re.search(r"^relight_gc_frozen_objects (\d+)$", text, re.M)
+    assert frozen is not None and int(frozen[1]) > 50_000, text[-1500:]
+    full = re.search(r'^relight_gc_pause_seconds_count\{generation="2"\} (\d+)$', text, re.M)
+    assert full is not None, text[-1500:]
