@@ -99,18 +99,23 @@ def bilinear_latlong(image: NDArray[np.floating], y: NDArray[np.floating], x: ND
     """
     h, w = image.shape[:2]
     y, x = np.broadcast_arrays(np.asarray(y, dtype=np.float64), np.asarray(x, dtype=np.float64))
-    tail = (None,) * (image.ndim - 2)
-    y = np.clip(y, 0.0, h - 1.0)
-    y0 = np.clip(np.floor(y).astype(np.intp), 0, max(h - 2, 0))
-    fy = (y - y0)[(..., *tail)]
+    shape, tail = y.shape, image.shape[2:]
+    y = np.clip(y.ravel(), 0.0, h - 1.0)
+    y0 = np.minimum(y.astype(np.intp), max(h - 2, 0))  # y >= 0: the cast is the floor
+    fy = (y - y0)[:, None]
     y1 = np.minimum(y0 + 1, h - 1)
-    x0f = np.floor(x)
-    fx = (x - x0f)[(..., *tail)]
+    x0f = np.floor(x.ravel())
+    fx = (x.ravel() - x0f)[:, None]
     x0 = np.mod(x0f.astype(np.intp), w)
-    x1 = np.mod(x0 + 1, w)
-    top = image[y0, x0] * (1.0 - fx) + image[y0, x1] * fx
-    bot = image[y1, x0] * (1.0 - fx) + image[y1, x1] * fx
-    return np.asarray(top * (1.0 - fy) + bot * fy, dtype=np.float64)
+    x1 = x0 + 1
+    x1[x1 == w] = 0
+    # gathers from the flattened image (one index per texel, rows of the trailing channels) are 2-3x faster than
+    # fancy indexing on two axes
+    flat = np.asarray(image).reshape(h * w, -1)
+    r0, r1 = y0 * w, y1 * w
+    top = flat.take(r0 + x0, axis=0) * (1.0 - fx) + flat.take(r0 + x1, axis=0) * fx
+    bot = flat.take(r1 + x0, axis=0) * (1.0 - fx) + flat.take(r1 + x1, axis=0) * fx
+    return np.asarray(top * (1.0 - fy) + bot * fy, dtype=np.float64).reshape(shape + tail)
 
 
 def sample_latlong(maps: NDArray[np.floating], dirs: NDArray[np.floating]) -> FloatArray:

@@ -45,12 +45,21 @@ def cube_face_dirs(size: int) -> NDArray[np.float64]:
 def _face_uv_to_dirs(b: NDArray[np.float64], a: NDArray[np.float64], face: NDArray[np.int_]) -> NDArray[np.float64]:
     """Inverse of table 8.19: face, ``a = 2s - 1`` (columns), ``b = 2t - 1`` (rows) -> unit direction."""
     a, b, face = np.broadcast_arrays(a, b, face)
-    one = np.ones_like(a)
-    x = np.choose(face, [one, -one, a, a, a, -a])
-    y = np.choose(face, [-b, -b, one, -one, -b, -b])
-    z = np.choose(face, [-a, a, b, -b, one, -one])
-    d = np.stack([x, y, z], axis=-1)
+    m = _FACE_AXES[face]  # (..., 3 [a, b, 1], 3 [x, y, z]): each component is +-a, +-b or +-1
+    d = a[..., None] * m[..., 0, :] + b[..., None] * m[..., 1, :] + m[..., 2, :]
     return np.asarray(d / np.linalg.norm(d, axis=-1, keepdims=True), dtype=np.float64)
+
+
+#: Per face of table 8.19, the (unnormalised) direction as rows of coefficients of ``a``, ``b`` and 1:
+#: +X (1, -b, -a), -X (-1, -b, a), +Y (a, 1, b), -Y (a, -1, -b), +Z (a, -b, 1), -Z (-a, -b, -1).
+_FACE_AXES = np.array([
+    [[0, 0, -1], [0, -1, 0], [1, 0, 0]],
+    [[0, 0, 1], [0, -1, 0], [-1, 0, 0]],
+    [[1, 0, 0], [0, 0, 1], [0, 1, 0]],
+    [[1, 0, 0], [0, 0, -1], [0, -1, 0]],
+    [[1, 0, 0], [0, -1, 0], [0, 0, 1]],
+    [[-1, 0, 0], [0, -1, 0], [0, 0, -1]],
+], dtype=np.float64)
 
 
 def _dirs_to_face_uv(x: NDArray[Any], y: NDArray[Any], z: NDArray[Any]) -> tuple[NDArray[np.intp], NDArray[Any],
