@@ -6,7 +6,7 @@ Implements Ramamoorthi & Hanrahan, "Frequency Space Environment Map Rendering", 
 __version__ = "0.1.0"
 
 #: Bumped whenever a change alters numerical results; part of every cache key.
-ALGORITHM_VERSION = "7"
+ALGORITHM_VERSION = "8"
 
 # BLAS libraries loaded from here on use RELIGHT_THREADS threads (relight.settings: one thread setting).
 from relight.errors import InputError as _InputError  # noqa: E402
