@@ -37,7 +37,7 @@ no normalisation.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 import numba
 import numpy as np
@@ -72,7 +72,8 @@ _REF_BLOCK = 4_000_000
 #: The grid path (:func:`_near_grid`, :func:`grid_pays`): GRID_K nodes per pixel side; lobes at least
 #: GRID_MIN_HALF_WIDTH pixel heights wide (half width at half maximum) with a window ramp at least GRID_MIN_RAMP
 #: wide, when the directions outnumber GRID_MIN_RATIO times the grid's stencils; GRID_BLOCK grid rows per FFT
-#: batch (memory ~ K BLOCK R W x 70 B). Measured against the direct sum (sun_sky(32), GGX near parts, window
+#: batch, fewer where its arrays (stencils, their FFTs, the map rows they take: ~ 72 B per stencil element) would
+#: pass GRID_BLOCK_BYTES. Measured against the direct sum (sun_sky(32), GGX near parts, window
 #: 4..8 px): r = 0.4 (half width 2.1 px, ramp 4 px) 0.05 % relative RMS; r = 0.45 with a 2-px ramp 0.15 %, the
 #: Catmull-Rom interpolation missing the ramp's curvature (its radius 0.64 px against the 0.5-px spacing).
 GRID_K = 2
@@ -80,6 +81,7 @@ GRID_MIN_HALF_WIDTH = 2.0
 GRID_MIN_RAMP = 3.0
 GRID_MIN_RATIO = 4
 GRID_BLOCK = 32
+GRID_BLOCK_BYTES = 256 << 20
 
 
 class WindowedLobe(RadialLobe):
@@ -231,7 +233,7 @@ def grid_pays(half_width: float, ramp: float, h: int, n: int) -> bool:
     return resolved and n > GRID_MIN_RATIO * (GRID_K * h + 1) * GRID_K
 
 
-def _near_grid(env: FloatArray, args: tuple[object, ...]) -> FloatArray:
+def _near_grid(env: FloatArray, args: tuple[Any, ...]) -> FloatArray:
     """:func:`angular_convolution`'s sum on the grid ``theta = o pi / (K H)``, ``o = 0 ... K H`` (both poles and
     every pixel centre's row), ``phi = -pi + (1/2 + c / K) 2 pi / W``, ``c = 0 ... K W - 1`` (every pixel centre's
     column): (K H + 1, K W, 3), ``K = GRID_K``.
@@ -243,13 +245,15 @@ def _near_grid(env: FloatArray, args: tuple[object, ...]) -> FloatArray:
     h, w = env.shape[:2]
     k = GRID_K
     dth, dph = math.pi / h, 2.0 * math.pi / w
-    theta_star = float(args[5])  # type: ignore[arg-type]
+    theta_star = float(args[5])
     c_up, c_down = _mean_rows(h)
     env_hat = np.fft.rfft(env, axis=1)  # (H, W/2 + 1, 3)
     grid = np.empty((k * h + 1, k * w, 3))
     offsets = -math.pi + (0.5 + np.arange(k) / k) * dph
-    for o0 in range(0, k * h + 1, GRID_BLOCK):
-        th = np.minimum(np.arange(o0, min(o0 + GRID_BLOCK, k * h + 1)) * (dth / k), math.pi)
+    rows_max = 2 * math.ceil(theta_star / dth) + 4  # map rows a stencil can touch (the cap, +- one pixel)
+    block = max(1, min(GRID_BLOCK, GRID_BLOCK_BYTES // (k * rows_max * w * 72)))
+    for o0 in range(0, k * h + 1, block):
+        th = np.minimum(np.arange(o0, min(o0 + block, k * h + 1)) * (dth / k), math.pi)
         theta = np.repeat(th, k)
         phi = np.tile(offsets, th.size)
         i_lo = np.maximum(0, np.ceil((theta - theta_star) / dth - 0.5).astype(np.int64))
@@ -257,7 +261,8 @@ def _near_grid(env: FloatArray, args: tuple[object, ...]) -> FloatArray:
         row0 = np.maximum(i_lo - 1, 0)
         rows = int(np.max(np.minimum(i_hi + 1, h - 1) - row0)) + 1
         st = np.zeros((theta.size, rows, w))
-        _near_stencils_jit(theta, phi, row0, env, *args, c_up, c_down, st)
+        stencils: Any = _near_stencils_jit  # numba's Dispatcher stub takes no starred tuple
+        stencils(theta, phi, row0, env, *args, c_up, c_down, st)
         idx = np.minimum(row0[:, None] + np.arange(rows)[None, :], h - 1)
         b_hat = np.einsum("nrm,nrmc->nmc", np.conj(np.fft.rfft(st, axis=2)), env_hat[idx])
         rows_out = np.fft.irfft(b_hat, n=w, axis=1)  # (n, W, 3): column j of offset s is grid column j K + s
