@@ -19,9 +19,10 @@ from sky_refs import sun_sky
 
 from relight.brdf.splitsum import GGXSplitSum
 from relight.cap_convolution import WindowedLobe, angular_convolution, brute_force, cap_mass, grid_pays, half_width
-from relight.conventions import LUMINANCE_WEIGHTS, latlong_dirs
-from relight.cube_chain import BABYLON_LOD_SCALE, TARGET_MAPPING, level_roughness, prefilter_chain
+from relight.conventions import LUMINANCE_WEIGHTS, latlong_dirs, sample_latlong
+from relight.cube_chain import BABYLON_LOD_SCALE, TARGET_MAPPING, level_roughness, mirror_level, prefilter_chain
 from relight.envmap import cube_face_dirs, read_envmap
+from relight.envmap.cubemap import _face_uv_to_dirs
 from relight.errors import InputError
 
 ENVMAPS = Path(__file__).resolve().parents[2] / "data" / "envmaps"
@@ -121,6 +122,22 @@ def test_level_zero_is_the_map_itself() -> None:
     assert lv.method == "sample" and lv.faces.shape == (6, 32, 32, 3)
     top = px[0].mean(axis=0)
     np.testing.assert_allclose(lv.faces[2, 15:17, 15:17].mean(axis=(0, 1)), top, rtol=0.05)
+
+
+@pytest.mark.parametrize(("h", "size"), [(8, 4), (32, 16), (64, 128)])
+def test_level_zero_is_the_four_tap_copy(h: int, size: int) -> None:
+    # the compiled level 0 against its definition written with the library's own pieces: the face directions a
+    # quarter texel off each centre and the lat-long sampler, averaged (agreement to rounding: the compiled loop
+    # takes the angles of the unnormalised directions)
+    px = np.random.default_rng(h).uniform(0.0, 4.0, size=(h, 2 * h, 3))
+    g = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    quarter = 0.5 / size
+    want = np.zeros((6 * size * size, 3))
+    for db in (-quarter, quarter):
+        for da in (-quarter, quarter):
+            dirs = _face_uv_to_dirs(g[None, :, None] + db, g[None, None, :] + da, np.arange(6)[:, None, None])
+            want += 0.25 * sample_latlong(px[None], dirs.reshape(-1, 3))[:, 0]
+    np.testing.assert_allclose(mirror_level(px, size), want, rtol=1e-12, atol=1e-13)
 
 
 def test_bad_arguments_are_refused() -> None:
