@@ -256,6 +256,9 @@ class JobService(JobTable):
             except Exception as exc:  # noqa: BLE001 - every task failure is recorded on the job
                 await self._fail(job_id, self.feed.submission.get(job_id, 0), exc)
                 return
+            # the result is in hand: let Dask forget the task now. A held future would make Dask recompute the
+            # task if its worker died while the result is being committed (tests/service/test_faults.py).
+            self._futures.pop(job_id, None)
             if done:
                 await self._succeed(job_id, self.feed.submission[job_id], result)
         finally:
