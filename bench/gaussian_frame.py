@@ -4,8 +4,8 @@
 
 One run, one GL context: the unit sphere and the ~100K-vertex bunny (``bunny-100k``) drawn with the chain's sharpest
 level looked up at R (``plain``: one bilinear lookup per pixel in an RGBA16F 2-D texture, the baseline), K = 3
-Gaussian lobes (eq. 5: per lobe one lookup in the packed lobe texture and one trilinear lookup in the chain's 3-D
-texture, plus one lookup for the blue weights), and K = 3 with 16-coefficient SH visibility at the lobe centres
+Gaussian lobes (eq. 5: two rows of the lobe table, two unfiltered RGBA32UI fetches each, and per lobe one
+trilinear lookup in the chain's 3-D texture), and K = 3 with 16-coefficient SH visibility at the lobe centres
 (eq. 7, ``sh``) or convolved with the lobes (``sh-lobe``), all through ``web/shaders/gaussian*.glsl``
 (``relight.gl.gaussian``). Milliseconds per frame (the
 median of ``--repeats`` timed batches of ``--frames`` frames each, after a warm-up; the shaders take turns batch by

@@ -6,9 +6,9 @@ viewer uses; it evaluates eq. 5, or eq. 7 with per-vertex SH visibility, exactly
 :func:`half_chain` round a material and a chain the way the textures hold them, so the CPU evaluation of the
 rounded data is the GPU's reference (``tests/relight/test_gl_gaussian.py``).
 
-Textures (the paper's Fig. 3): ``u_lobes`` RGBA16F, N rows of ``lobe_texels(K)`` texels (:func:`pack_lobes`:
-(mu_k, sigma_k, w_k.r, w_k.g) per lobe, then the blue weights four to a texel), LINEAR and clamped (one filtered
-lookup per texel interpolates the elevations); ``u_chain`` an RGBA16F 3-D texture whose slices are the chain's
+Textures (the paper's Fig. 3): ``u_lobes`` RGBA32UI, the float16 lobe table (:class:`LobeTable`: a row per
+elevation, or per row of an even grid through them, so that the shader finds its rows with one multiply; read with
+texelFetch, interpolated in the shader); ``u_chain`` an RGBA16F 3-D texture whose slices are the chain's
 levels, which must share one size (``build_chain(..., uniform_size=True)``): one trilinear lookup per lobe blends
 two levels. Objects: the unit sphere (orthographic, ``relight.shrm.sphere_geometry``'s frame) or a
 ``TriangleMesh`` in the unit ball (indexed, canonical vertex order, with its per-vertex visibility), with
@@ -48,10 +48,90 @@ def _half(a: NDArray[np.floating]) -> NDArray[np.float64]:
     return np.asarray(np.asarray(a, dtype=np.float64).astype(np.float16), dtype=np.float64)
 
 
+#: The most rows of an even grid the lobe table is resampled onto; with more, or with elevations on no grid, the
+#: table keeps the material's own elevations and the shader bisects them.
+MAX_GRID_ROWS: Final = 1024
+#: Grid steps tried: the smallest gap between elevations divided by 1, 2, ..., this.
+GRID_SUBDIVISIONS: Final = 16
+#: How far, in rows, an elevation may sit from its grid row (float32 elevations of a float64 grid: ~1e-5).
+GRID_TOLERANCE: Final = 1e-3
+
+
+def lobe_grid(elevations: NDArray[np.floating]) -> tuple[float, float, int] | None:
+    """(theta_0, step, rows) of the coarsest even grid that has a row at every elevation (within
+    :data:`GRID_TOLERANCE` rows; step = gap / q for the smallest gap and q = 1 ... :data:`GRID_SUBDIVISIONS`, the
+    last row at the last elevation), or None (fewer than two elevations, none found within :data:`MAX_GRID_ROWS`).
+    ``relight fit``'s elevations always have one: N even ones, then bisections (docs/conventions.md)."""
+    e = np.asarray(elevations, dtype=np.float64)
+    if e.size < 2:
+        return None
+    gap, span = float(np.min(np.diff(e))), float(e[-1] - e[0])
+    for q in range(1, GRID_SUBDIVISIONS + 1):
+        rows = int(round(span / (gap / q))) + 1
+        if rows > MAX_GRID_ROWS:
+            return None
+        step = span / (rows - 1)
+        m = (e - e[0]) / step
+        if float(np.max(np.abs(m - np.round(m)))) <= GRID_TOLERANCE:
+            return float(e[0]), step, rows
+    return None
+
+
+class LobeTable:
+    """The material as the shader's lobe table holds it (``web/shaders/gaussian.glsl``): rows at the material's
+    elevations (float32), or at every row of :func:`lobe_grid`'s grid through them, the inserted rows linearly
+    interpolated (so the piecewise-linear parameters in theta_o are the material's); every value float16.
+    ``web/src/gaussian.js``'s lobeTable computes the same rows with the same arithmetic."""
+
+    def __init__(self, material: GaussianLobes) -> None:
+        e = np.asarray(material.elevations.astype(np.float32), dtype=np.float64)
+        rounded = GaussianLobes(e, _half(material.mu), _half(material.sigma), _half(material.weight))
+        grid = lobe_grid(e)
+        #: (theta_0, rows per radian), the shader's ``u_lobe_grid``, or None (the rows are the elevations)
+        self.grid: tuple[float, float] | None = None
+        self.material = rounded
+        if grid is not None:
+            theta0, step, rows = grid
+            at = theta0 + step * np.arange(rows)
+            mu, sigma, weight = rounded.params_at(at)
+            self.material = GaussianLobes(at, _half(mu), _half(sigma), _half(weight))
+            self.grid = (theta0, 1.0 / step)
+
+    @property
+    def rows(self) -> int:
+        return int(self.material.elevations.size)
+
+    def words(self) -> NDArray[np.uint32]:
+        """The RGBA32UI texels, (rows, :func:`lobe_texels` (K), 4) uint32: per row the float16 halves mu_0, sigma_0,
+        w_0.r, w_0.g, mu_1, ..., then w_0.b, ..., w_{K-1}.b, zero-padded, two to a word (low half first)."""
+        m = self.material
+        k = m.n_lobes
+        halves = np.zeros((self.rows, 8 * lobe_texels(k)), dtype=np.float16)
+        w = np.asarray(m.weight)
+        per_lobe = np.stack([m.mu, m.sigma, w[..., 0], w[..., 1]], axis=-1)  # (rows, K, 4)
+        halves[:, : 4 * k] = per_lobe.reshape(self.rows, 4 * k)
+        halves[:, 4 * k : 5 * k] = w[..., 2]
+        return np.ascontiguousarray(halves).view("<u4").reshape(self.rows, lobe_texels(k), 4)
+
+    def defines(self) -> dict[str, object]:
+        out: dict[str, object] = {"GAUSSIAN_K": self.material.n_lobes, "GAUSSIAN_ROWS": self.rows}
+        if self.grid is not None:
+            out["GAUSSIAN_GRID"] = None
+        else:
+            out["GAUSSIAN_SEARCH_STEP"] = 1 << ((self.rows - 2).bit_length() - 1) if self.rows > 2 else 0
+        return out
+
+    def uniforms(self) -> dict[str, object]:
+        if self.grid is not None:
+            return {"u_lobe_grid": self.grid}
+        return {"u_elevations": [float(x) for x in self.material.elevations]}
+
+
 def half_material(material: GaussianLobes) -> GaussianLobes:
-    """The material as its textures hold it: mu, sigma and w rounded to float16, elevations to float32."""
-    e = np.asarray(material.elevations.astype(np.float32), dtype=np.float64)
-    return GaussianLobes(e, _half(material.mu), _half(material.sigma), _half(material.weight))
+    """The material as the GPU holds it (:class:`LobeTable`): float16 values at float32 elevations, on the even grid
+    through them where there is one (the same parameters at every theta_o, up to the float16 rounding of the
+    inserted rows). Idempotent."""
+    return LobeTable(material).material
 
 
 def half_chain(chain: GaussianChain) -> GaussianChain:
@@ -62,21 +142,8 @@ def half_chain(chain: GaussianChain) -> GaussianChain:
 
 
 def lobe_texels(n_lobes: int) -> int:
-    """RGBA texels per elevation of the lobe texture: one per lobe, then the blue weights four to a texel."""
-    return n_lobes + (n_lobes + 3) // 4
-
-
-def pack_lobes(material: GaussianLobes) -> NDArray[np.float16]:
-    """The lobe texture's texels, (N, K + ceil(K / 4), 4) float16: per elevation (mu_k, sigma_k, w_k.r, w_k.g) for
-    k < K, then w_0.b, ..., w_{K-1}.b zero-padded (``web/src/gaussian.js``'s packLobes)."""
-    k, n = material.n_lobes, material.elevations.size
-    out = np.zeros((n, lobe_texels(k), 4), dtype=np.float16)
-    w = np.asarray(material.weight)
-    out[:, :k, 0], out[:, :k, 1], out[:, :k, 2:] = material.mu, material.sigma, w[..., :2]
-    blue = np.zeros((n, 4 * (lobe_texels(k) - k)))
-    blue[:, :k] = w[..., 2]
-    out[:, k:] = blue.reshape(n, -1, 4)
-    return out
+    """RGBA32UI texels per row of the lobe table: 2 words per lobe and the blue weights two to a word."""
+    return (2 * n_lobes + (n_lobes + 1) // 2 + 3) // 4
 
 
 class GaussianRenderer:
@@ -90,11 +157,11 @@ class GaussianRenderer:
             raise InputError(f"the GL chain needs levels of one size (build_chain(..., uniform_size=True)), got "
                              f"{sorted(sizes)}")
         self.material, self.chain = material, chain
+        self.table = LobeTable(material)
         self.ctx = ctx if ctx is not None else create_context()
-        texels = pack_lobes(material)
-        self.lobes = self.ctx.texture((texels.shape[1], texels.shape[0]), 4, np.ascontiguousarray(texels).tobytes(),
-                                      dtype="f2")
-        self.lobes.filter = (moderngl.LINEAR, moderngl.LINEAR)  # the shader interpolates elevations by the sampler
+        words = self.table.words()
+        self.lobes = self.ctx.texture((words.shape[1], words.shape[0]), 4, words.tobytes(), dtype="u4")
+        self.lobes.filter = (moderngl.NEAREST, moderngl.NEAREST)  # read with texelFetch; the shader interpolates
         self.lobes.repeat_x = self.lobes.repeat_y = False
         h, w = next(iter(sizes))[:2]
         from relight.envmap.exr import to_half_safe
@@ -121,8 +188,8 @@ class GaussianRenderer:
 
     def defines(self, obj: str, mode: str = "none", order: int = 3, plain: bool = False) -> dict[str, object]:
         """The shader's defines (also what the viewer passes)."""
-        out: dict[str, object] = {"GAUSSIAN_K": self.material.n_lobes, "GAUSSIAN_N": int(self.material.elevations.size),
-                                  "GAUSSIAN_LEVELS": len(self.chain.levels), "OUTPUT_LINEAR": None}
+        out: dict[str, object] = {**self.table.defines(), "GAUSSIAN_LEVELS": len(self.chain.levels),
+                                  "OUTPUT_LINEAR": None}
         if obj == "sphere":
             out["GAUSSIAN_SPHERE"] = None
         if plain:
@@ -175,7 +242,7 @@ class GaussianRenderer:
         right, up = camera_basis(v)
         values: dict[str, Any] = {
             "u_lobes": 0, "u_chain": 1, "u_env": 2,
-            "u_elevations": [float(x) for x in self.material.elevations],
+            **self.table.uniforms(),
             "u_chain_sigma0": float(self.chain.levels[0].sigma),
             "u_chain_log_ratio": math.log(self.chain.levels[1].sigma / self.chain.levels[0].sigma)
             if len(self.chain.levels) > 1 else 1.0,

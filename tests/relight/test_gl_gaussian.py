@@ -17,7 +17,7 @@ from relight.brdf.models import TorranceSparrow
 from relight.envmap import read_envmap, resample_latlong
 from relight.errors import InputError
 from relight.gaussian_chain import GaussianChain, build_chain
-from relight.gl.gaussian import GaussianRenderer, half_chain, half_material
+from relight.gl.gaussian import MAX_GRID_ROWS, GaussianRenderer, LobeTable, half_chain, half_material, lobe_grid
 from relight.gl.render import create_context
 from relight.mesh import sample_mesh
 from relight.mesh.model import TriangleMesh
@@ -118,3 +118,83 @@ def test_plain_lookup_and_errors(renderer: GaussianRenderer) -> None:
                                              orders={})
     with pytest.raises(InputError, match="one size"):
         GaussianRenderer(data()[0], uneven, ctx=renderer.ctx)
+
+
+def _uneven_material() -> GaussianLobes:
+    """The test material's parameters at elevations on no even grid (:func:`lobe_grid` finds none within
+    MAX_GRID_ROWS): the shader bisects them."""
+    fit = data()[0]
+    at = np.array([0.0, 0.1234567, 0.5, 0.61, 0.9, 1.3, 1.5])
+    mu, sigma, weight = fit.params_at(at)
+    return GaussianLobes(at, mu, sigma, weight)
+
+
+def test_lobe_grid_finds_the_coarsest_even_grid() -> None:
+    # relight fit's elevations: 15 even ones, an interval bisected twice
+    step = math.radians(87.0) / 14
+    fit_like = np.sort(np.r_[step * np.arange(15), step * 6.5, step * 6.25])
+    theta0, grid_step, rows = lobe_grid(fit_like)  # type: ignore[misc]
+    assert (theta0, rows) == (0.0, 57) and math.isclose(grid_step, step / 4)
+    assert lobe_grid(np.array([0.0, 0.3, 0.55, 1.2]))[2] == 25  # type: ignore[index]  # gap 0.25 / 5
+    assert lobe_grid(np.array([0.0, 0.5, 0.75, 1.5]))[2] == 7  # type: ignore[index]  # gap 0.25
+    assert lobe_grid(np.array([0.2])) is None
+    assert lobe_grid(np.array([0.0, 1e-4, 1.0])) is None  # 10 001 rows > MAX_GRID_ROWS
+    assert lobe_grid(_uneven_material().elevations) is None
+    # float32 elevations of a float64 grid are on it (GRID_TOLERANCE)
+    assert lobe_grid(fit_like.astype(np.float32).astype(np.float64))[2] == 57  # type: ignore[index]
+    assert MAX_GRID_ROWS >= 4 * 14 * 16 + 1  # relight fit at most bisects 4 levels deep (sgfit_refine.MAX_DEPTH)
+
+
+@pytest.mark.parametrize("uneven", [False, True])
+def test_lobe_table_keeps_the_materials_parameters(uneven: bool) -> None:
+    """The table's rows interpolate to the material's piecewise-linear parameters: bit for bit at the material's
+    elevations, and between them within the float16 rounding of the inserted rows (half an ulp, 2^-11 relative,
+    of a value no larger than its neighbours); the words hold those float16 values; the table is idempotent."""
+    fit = _uneven_material() if uneven else fit_gaussian_lobes(TorranceSparrow(0.2, fresnel="none"),
+                                                                FitSettings(elevations=15, max_lobes=3))
+    table = LobeTable(fit)
+    rounded = GaussianLobes(fit.elevations.astype(np.float32).astype(np.float64), *(
+        np.asarray(x).astype(np.float16).astype(np.float64) for x in (fit.mu, fit.sigma, fit.weight)))
+    if uneven:
+        assert table.grid is None and table.rows == fit.elevations.size
+        assert table.defines()["GAUSSIAN_SEARCH_STEP"] == 4
+    else:
+        assert fit.elevations.size > 15  # the fit inserted elevations: uneven, yet on a grid
+        assert table.grid is not None and table.rows > fit.elevations.size and "GAUSSIAN_GRID" in table.defines()
+    theta = np.linspace(-0.1, 1.6, 4001)
+    for got, want in zip(table.material.params_at(theta), rounded.params_at(theta), strict=True):
+        scale = np.max(np.abs(want), axis=0, keepdims=True)
+        assert np.all(np.abs(got - want) <= 2.0**-11 * scale + 1e-12)
+    # the rows at the material's elevations hold its values
+    rows = np.arange(table.rows) if table.grid is None else np.rint(
+        (rounded.elevations - table.grid[0]) * table.grid[1]).astype(int)
+    assert np.all(np.abs(table.material.elevations[rows] - rounded.elevations) < 1e-6)
+    for got, want in zip((table.material.mu, table.material.sigma, table.material.weight),
+                         (rounded.mu, rounded.sigma, rounded.weight), strict=True):
+        np.testing.assert_array_equal(got[rows], want)
+    halves = table.words().view(np.float16).reshape(table.rows, -1).astype(np.float64)
+    k = fit.n_lobes
+    per_lobe = halves[:, : 4 * k].reshape(table.rows, k, 4)
+    np.testing.assert_array_equal(per_lobe[..., 0], table.material.mu)
+    np.testing.assert_array_equal(per_lobe[..., 1], table.material.sigma)
+    np.testing.assert_array_equal(per_lobe[..., 2:], table.material.weight[..., :2])
+    np.testing.assert_array_equal(halves[:, 4 * k : 5 * k], table.material.weight[..., 2])
+    assert not np.any(halves[:, 5 * k :])
+    again = LobeTable(table.material)
+    assert again.rows == table.rows and again.grid == table.grid
+    np.testing.assert_array_equal(again.words(), table.words())
+    assert half_material(fit) is not fit and np.array_equal(half_material(fit).mu, table.material.mu)
+
+
+def test_sphere_on_unevenly_spaced_elevations_matches_the_cpu(renderer: GaussianRenderer) -> None:
+    """The shader's other interval path (a branchless bisection over u_elevations) against the CPU."""
+    _, chain, _, _ = data()
+    mat = half_material(_uneven_material())
+    r = GaussianRenderer(mat, chain, ctx=renderer.ctx)
+    try:
+        assert "GAUSSIAN_SEARCH_STEP" in r.defines("sphere")
+        for view in (VIEW, np.array([0.0, 0.0, 1.0])):
+            err = _compare(r.render(view, SIZE), render_sphere_gaussian(mat, chain, view, SIZE))
+            assert err < REL_TOL, (view, err)
+    finally:
+        r.release()

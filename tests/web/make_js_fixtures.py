@@ -127,11 +127,14 @@ def shader_fixture() -> dict[str, Any]:
         d = {**defs, **extra} if name != "background.frag.glsl" and name != "object.vert.glsl" else extra
         builds.append({"name": name, "defines": [[k, v] for k, v in d.items()],  # ordered (JSON sorts keys)
                        "text": shaders.build(name, target="300 es", defines=d)})
-    gaussian = {"GAUSSIAN_K": 3, "GAUSSIAN_N": 15, "GAUSSIAN_LEVELS": 12, "GAUSSIAN_VISIBILITY": None, "VIS_MODE": 3,
-                "SH_ORDER": 3, "OUTPUT_LINEAR": None}
-    for name in ("gaussian.frag.glsl", "gaussian.vert.glsl"):
-        builds.append({"name": name, "defines": [[k, v] for k, v in gaussian.items()],
-                       "text": shaders.build(name, target="300 es", defines=gaussian)})
+    gaussian = {"GAUSSIAN_K": 3, "GAUSSIAN_ROWS": 57, "GAUSSIAN_GRID": None, "GAUSSIAN_LEVELS": 12,
+                "GAUSSIAN_VISIBILITY": None, "VIS_MODE": 3, "SH_ORDER": 3, "OUTPUT_LINEAR": None}
+    searched = {"GAUSSIAN_K": 5, "GAUSSIAN_ROWS": 9, "GAUSSIAN_SEARCH_STEP": 4, "GAUSSIAN_LEVELS": 4,
+                "GAUSSIAN_SPHERE": None, "OUTPUT_LINEAR": None}
+    for name, d in (("gaussian.frag.glsl", gaussian), ("gaussian.vert.glsl", gaussian),
+                    ("gaussian.frag.glsl", searched)):
+        builds.append({"name": name, "defines": [[k, v] for k, v in d.items()],
+                       "text": shaders.build(name, target="300 es", defines=d)})
     files = {}
     for path in sorted(shaders.SHADER_DIR.rglob("*.glsl")):
         rel = path.relative_to(shaders.SHADER_DIR).as_posix()
@@ -163,10 +166,46 @@ def _wigner(p: int, beta: float) -> list[float]:
     return [float(x) for x in wigner.wigner_d_matrix(p, np.array([beta]))[0].ravel()]
 
 
+def _lobe_case(rng: np.random.Generator, k: int, elevations: list[float]) -> dict[str, Any]:
+    from relight.brdf.gaussian_lobes import GaussianLobes
+    from relight.gl.gaussian import LobeTable
+
+    n = len(elevations)
+    half = np.float16
+    mu = rng.uniform(-1.5, 1.5, (n, k)).astype(half)
+    sigma = rng.uniform(0.02, 1.0, (n, k)).astype(half)
+    weight = rng.uniform(0.0, 2.0, (n, k, 3)).astype(half)
+    weight[rng.random((n, k)) < 0.2] = 0.0  # dead lobes
+    table = LobeTable(GaussianLobes(np.array(elevations), mu.astype(np.float64), sigma.astype(np.float64),
+                                    weight.astype(np.float64)))
+    shape = np.zeros((n, k, 4), dtype=half)
+    shape[..., 0], shape[..., 1] = mu, sigma
+    w4 = np.zeros((n, k, 4), dtype=half)
+    w4[..., :3] = weight
+    return {"lobes": k, "elevations": elevations, "shape": [int(x) for x in shape.view(np.uint16).ravel()],
+            "weight": [int(x) for x in w4.view(np.uint16).ravel()], "rows": table.rows,
+            "grid": None if table.grid is None else list(table.grid), "defines": table.defines(),
+            "words": [int(x) for x in table.words().ravel()]}
+
+
+def gaussian_fixture() -> dict[str, Any]:
+    """relight.gl.gaussian.LobeTable of materials given as float16 bits: gaussian.js's lobeTable must give the same
+    rows, grid, defines and words. Cases: a fit's grid (even elevations, then bisections), an even grid coarser than
+    the elevations' gap, elevations on no grid (the bisection path), one elevation, two, and K from 1 to 8."""
+    rng = np.random.default_rng(17)
+    step = 1.5 / 4
+    fit_like = sorted({*(step * np.arange(5)), step * 1.5, step * 1.75, step * 2.5})
+    uneven = [0.0, 0.1234567, 0.5, 0.61, 1.3]
+    cases = [_lobe_case(rng, 3, [float(x) for x in fit_like]), _lobe_case(rng, 1, [0.0, 0.3, 0.55, 1.2]),
+             _lobe_case(rng, 5, uneven), _lobe_case(rng, 8, [0.4]), _lobe_case(rng, 2, [0.0, 1.4]),
+             _lobe_case(rng, 4, [0.0, 0.01, 1.5])]
+    return {"cases": cases}
+
+
 def fixtures() -> dict[str, str]:
     return {name: json.dumps(data, indent=1, sort_keys=True) + "\n" for name, data in (
         ("sh.json", sh_fixture()), ("layout.json", layout_fixture()), ("shaders.json", shader_fixture()),
-        ("global.json", global_fixture()))}
+        ("global.json", global_fixture()), ("gaussian.json", gaussian_fixture()))}
 
 
 def main() -> None:

@@ -1,56 +1,70 @@
 // Gaussian lobes with a Gaussian-prefiltered chain (Green, Kautz & Durand 2007, §5, eqs. 5 and 7): the GPU twin
 // of relight.sg_render.lobe_terms and relight.sg_shadow.lobe_visibility (docs/conventions.md, "Gaussian lobes").
 //
-// Defines: GAUSSIAN_K (lobes), GAUSSIAN_N (elevations), GAUSSIAN_LEVELS (chain levels); with GAUSSIAN_VISIBILITY
-// also VIS_MODE (VIS_AO, VIS_SH or VIS_SH_LOBE below) and SH_ORDER <= 3 (the visibility's order).
-// Data, all float16 as stored (the paper's Fig. 3 layout):
-//   u_lobes        GAUSSIAN_LOBE_TEXELS x N texels (y = elevation): texel k < K = (mu_k, sigma_k, w_k.r, w_k.g)
-//                  (radians; w the lobe's integral), then w_0.b, ..., w_{K-1}.b four to a texel
-//                  (relight.gl.gaussian.pack_lobes, web/src/gaussian.js packLobes);
-//   u_elevations   the N elevations theta_o (radians, increasing);
+// Defines: GAUSSIAN_K (lobes), GAUSSIAN_ROWS (rows of the lobe table), GAUSSIAN_LEVELS (chain levels), and either
+// GAUSSIAN_GRID (the rows are evenly spaced in theta_o) or GAUSSIAN_SEARCH_STEP (the largest power of two
+// <= GAUSSIAN_ROWS - 2, or 0: the rows are the material's own, unevenly spaced elevations); with
+// GAUSSIAN_VISIBILITY also VIS_MODE (VIS_AO, VIS_SH or VIS_SH_LOBE below) and SH_ORDER <= 3 (the visibility's order).
+// Data, all float16 as stored (the paper's Fig. 3 layout; relight.gl.gaussian.lobe_table, web/src/gaussian.js
+// lobeTable):
+//   u_lobes        RGBA32UI, GAUSSIAN_LOBE_TEXELS x ROWS texels, NEAREST (read with texelFetch): row i holds the
+//                  lobes at elevation theta_i as float16 pairs (unpackHalf2x16: low half first), word 2k =
+//                  (mu_k, sigma_k), word 2k + 1 = (w_k.r, w_k.g), then word 2K + k / 2 holds w_k.b (low half for
+//                  even k); radians, w the lobe's integral. The rows are the material's elevations, or -- when
+//                  those lie on an even grid of at most relight.gl.gaussian.MAX_GRID_ROWS rows -- every row of that
+//                  grid, the inserted rows interpolated (the same piecewise-linear function of theta_o);
+//   u_lobe_grid    with GAUSSIAN_GRID: (theta_0, rows per radian);
+//   u_elevations   without it: the ROWS elevations theta_i (radians, increasing);
 //   u_chain        the levels G_{sigma_j} * L as the slices of one 3-D texture (every level the same S x 2S
 //                  lat-long size), LINEAR in all three axes, REPEAT in u, CLAMP_TO_EDGE in v and across the
 //                  levels: relight.conventions.sample_latlong within a level.
-// u_lobes is LINEAR and CLAMP_TO_EDGE: one lookup per texel at its centre across and at texel coordinate j + f
-// along the elevations interpolates linearly in theta_o (the sampler's weights), clamped at the end elevations
-// (GaussianLobes.params_at), with no weight on the neighbouring texels.
+// The parameters are interpolated linearly in theta_o between rows j and j + 1 (GaussianLobes.params_at), clamped
+// at the end rows.
 // A lobe's level is x = log(sigma / sigma_0) / log(ratio), clamped to the chain, blended linearly between floor(x)
 // and floor(x) + 1 (relight.gaussian_chain.sample_chain) by the 3-D texture's filter.
 // Written for SIMD rasterisers as much as for GPUs (bench/gaussian_frame.py, llvmpipe): no loop over lobes and no
-// array indexed per pixel (llvmpipe keeps such arrays in memory), one filtered lookup per lobe in the chain.
+// array indexed per pixel (llvmpipe keeps such arrays in memory; the row arrays below are indexed by constants
+// only), one filtered lookup per lobe in the chain. The lobe table costs GAUSSIAN_LOBE_TEXELS unfiltered fetches
+// per row (2 for K = 3; a filtered RGBA16F table cost one filtered fetch per lobe), and on a grid the interval is
+// one multiply (a bisection over uniforms cost as much as a chain lookup on llvmpipe).
 
 #define VIS_AO 1
 #define VIS_SH 2
 #define VIS_SH_LOBE 3
 
-// Texels per elevation of u_lobes: (mu_k, sigma_k, w_k.r, w_k.g) for each lobe k, then the blue weights four to
-// a texel.
-#define GAUSSIAN_LOBE_TEXELS (GAUSSIAN_K + (GAUSSIAN_K + 3) / 4)
+// 32-bit words and RGBA32UI texels per row of u_lobes.
+#define GAUSSIAN_WORDS (2 * GAUSSIAN_K + (GAUSSIAN_K + 1) / 2)
+#define GAUSSIAN_LOBE_TEXELS ((GAUSSIAN_WORDS + 3) / 4)
 
-uniform highp sampler2D u_lobes;
-uniform float u_elevations[GAUSSIAN_N];
+uniform highp usampler2D u_lobes;
+#ifdef GAUSSIAN_GRID
+uniform vec2 u_lobe_grid;
+#else
+uniform float u_elevations[GAUSSIAN_ROWS];
+#endif
 uniform highp sampler3D u_chain;
 uniform float u_chain_sigma0;
 uniform float u_chain_log_ratio;
 
-// The interval j (u_elevations[j] <= theta < u_elevations[j + 1], j <= N - 2) and the fraction f within it, by
-// bisection: ceil(log2(N - 1)) steps (the fit's elevations are not evenly spaced: relight.sgfit_refine inserts
-// some where interpolation fails, up to N = 39; a linear scan cost N - 2 compares per pixel).
+// The rows j (<= ROWS - 2) and j + 1 around theta and the fraction f between them: on a grid one multiply; else a
+// branchless bisection over the elevations with a fixed step count (ceil(log2(ROWS - 1)) steps: each keeps
+// u_elevations[j] <= t and halves what is left above j).
 void gaussian_interval(float theta, out int j, out float f) {
     j = 0;
     f = 0.0;
-#if GAUSSIAN_N > 1
-    float t = clamp(theta, u_elevations[0], u_elevations[GAUSSIAN_N - 1]);
-    int hi = GAUSSIAN_N - 1;
-    while (hi - j > 1) {
-        int mid = (j + hi) / 2;
-        if (t >= u_elevations[mid]) {
-            j = mid;
-        } else {
-            hi = mid;
-        }
+#if GAUSSIAN_ROWS > 1
+#ifdef GAUSSIAN_GRID
+    float x = clamp((theta - u_lobe_grid.x) * u_lobe_grid.y, 0.0, float(GAUSSIAN_ROWS - 1));
+    j = min(int(x), GAUSSIAN_ROWS - 2);
+    f = x - float(j);
+#else
+    float t = clamp(theta, u_elevations[0], u_elevations[GAUSSIAN_ROWS - 1]);
+    for (int s = GAUSSIAN_SEARCH_STEP; s > 0; s /= 2) {
+        int m = min(j + s, GAUSSIAN_ROWS - 2);
+        j = t >= u_elevations[m] ? m : j;
     }
     f = (t - u_elevations[j]) / (u_elevations[j + 1] - u_elevations[j]);
+#endif
 #endif
 }
 
@@ -146,13 +160,27 @@ float gaussian_visibility(vec3 c, float sigma, mat4 vis) {
 }
 #endif
 
-// One lobe's term from its texel a = (mu, sigma, w_r, w_g) and its w_b.
+// (cos(mu), sin(mu)) for |mu| <= pi/2 (GaussianLobes validates that range; float16 rounding adds < 1e-3): the
+// Taylor polynomials of degree 12 and 11, whose truncation error there is below 6e-8 (the next terms,
+// (pi/2)^14 / 14! and (pi/2)^13 / 13!; 3e-7 measured in float32), without the built-ins' range reduction (about 2 %
+// of the sphere's frame on llvmpipe).
+vec2 gaussian_cos_sin(float mu) {
+    float x2 = mu * mu;
+    float c = 1.0 + x2 * (-1.0 / 2.0 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0
+              + x2 * (-1.0 / 3628800.0 + x2 * (1.0 / 479001600.0))))));
+    float s = mu * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362880.0
+                + x2 * (-1.0 / 39916800.0))))));
+    return vec2(c, s);
+}
+
+// One lobe's term from a = (mu, sigma, w_r, w_g) and its w_b.
 #ifdef GAUSSIAN_VISIBILITY
 vec3 gaussian_lobe(vec4 a, float wb, vec3 r, vec3 e, mat4 vis) {
 #else
 vec3 gaussian_lobe(vec4 a, float wb, vec3 r, vec3 e) {
 #endif
-    vec3 c = cos(a.x) * r + sin(a.x) * e;
+    vec2 cs = gaussian_cos_sin(a.x);
+    vec3 c = cs.x * r + cs.y * e;
     vec3 term = vec3(a.z, a.w, wb) * gaussian_chain_lookup(c, a.y);
 #ifdef GAUSSIAN_VISIBILITY
     term *= gaussian_visibility(c, a.y, vis);
@@ -160,12 +188,21 @@ vec3 gaussian_lobe(vec4 a, float wb, vec3 r, vec3 e) {
     return term;
 }
 
-// Lobe k (a literal) with the blue weight b (a component of b0 or b1), its texel at column k of the pixel's row.
+// Word w (a constant) of a row held as the texels a[0], a[1], ...; lobe k's (mu, sigma, w.r, w.g) and w.b.
+#define GAUSSIAN_WORD(a, w) a[(w) / 4][(w) % 4]
+#define GAUSSIAN_HALVES(a, w) unpackHalf2x16(GAUSSIAN_WORD(a, w))
+#define GAUSSIAN_PARAMS(a, k) vec4(GAUSSIAN_HALVES(a, 2 * (k)), GAUSSIAN_HALVES(a, 2 * (k) + 1))
+#define GAUSSIAN_BLUE(a, k) GAUSSIAN_HALVES(a, 2 * GAUSSIAN_K + (k) / 2)[(k) % 2]
+// Lobe k (a literal): its row values interpolated between rows j (lo) and j + 1 (hi).
+#define GAUSSIAN_LOBE_PARAMS(k) mix(GAUSSIAN_PARAMS(lo, k), GAUSSIAN_PARAMS(hi, k), f)
+#define GAUSSIAN_LOBE_BLUE(k) mix(GAUSSIAN_BLUE(lo, k), GAUSSIAN_BLUE(hi, k), f)
 #ifdef GAUSSIAN_VISIBILITY
-#define GAUSSIAN_LOBE(k, b) gaussian_lobe(texture(u_lobes, vec2((float(k) + 0.5) * dx, row)), b, r, e, vis)
+#define GAUSSIAN_LOBE(k) gaussian_lobe(GAUSSIAN_LOBE_PARAMS(k), GAUSSIAN_LOBE_BLUE(k), r, e, vis)
 #else
-#define GAUSSIAN_LOBE(k, b) gaussian_lobe(texture(u_lobes, vec2((float(k) + 0.5) * dx, row)), b, r, e)
+#define GAUSSIAN_LOBE(k) gaussian_lobe(GAUSSIAN_LOBE_PARAMS(k), GAUSSIAN_LOBE_BLUE(k), r, e)
 #endif
+// Texel i (a literal) of rows j and j + 1.
+#define GAUSSIAN_FETCH(i) lo[i] = texelFetch(u_lobes, ivec2(i, j), 0); hi[i] = texelFetch(u_lobes, ivec2(i, j1), 0)
 
 // Outgoing radiance toward the unit view v at the unit normal n: eq. 5, or eq. 7 with the point's visibility.
 // The lobes are written out one by one (K <= 8, relight.sgfit's max_lobes) with no branch on a dead lobe (its
@@ -183,32 +220,44 @@ vec3 gaussian_shade(vec3 n, vec3 v) {
     int j;
     float f;
     gaussian_interval(acos(ndv), j, f);
-    float row = (float(j) + f + 0.5) / float(GAUSSIAN_N);
-    float dx = 1.0 / float(GAUSSIAN_LOBE_TEXELS);
-    vec4 b0 = texture(u_lobes, vec2((float(GAUSSIAN_K) + 0.5) * dx, row));
+    int j1 = min(j + 1, GAUSSIAN_ROWS - 1);
+    uvec4 lo[GAUSSIAN_LOBE_TEXELS];
+    uvec4 hi[GAUSSIAN_LOBE_TEXELS];
+    GAUSSIAN_FETCH(0);
+#if GAUSSIAN_LOBE_TEXELS > 1
+    GAUSSIAN_FETCH(1);
+#endif
+#if GAUSSIAN_LOBE_TEXELS > 2
+    GAUSSIAN_FETCH(2);
+#endif
+#if GAUSSIAN_LOBE_TEXELS > 3
+    GAUSSIAN_FETCH(3);
+#endif
+#if GAUSSIAN_LOBE_TEXELS > 4
+    GAUSSIAN_FETCH(4);
+#endif
     vec3 e = gaussian_axis(n, r);
-    vec3 sum = GAUSSIAN_LOBE(0, b0.x);
+    vec3 sum = GAUSSIAN_LOBE(0);
 #if GAUSSIAN_K > 1
-    sum += GAUSSIAN_LOBE(1, b0.y);
+    sum += GAUSSIAN_LOBE(1);
 #endif
 #if GAUSSIAN_K > 2
-    sum += GAUSSIAN_LOBE(2, b0.z);
+    sum += GAUSSIAN_LOBE(2);
 #endif
 #if GAUSSIAN_K > 3
-    sum += GAUSSIAN_LOBE(3, b0.w);
+    sum += GAUSSIAN_LOBE(3);
 #endif
 #if GAUSSIAN_K > 4
-    vec4 b1 = texture(u_lobes, vec2((float(GAUSSIAN_K) + 1.5) * dx, row));
-    sum += GAUSSIAN_LOBE(4, b1.x);
+    sum += GAUSSIAN_LOBE(4);
 #endif
 #if GAUSSIAN_K > 5
-    sum += GAUSSIAN_LOBE(5, b1.y);
+    sum += GAUSSIAN_LOBE(5);
 #endif
 #if GAUSSIAN_K > 6
-    sum += GAUSSIAN_LOBE(6, b1.z);
+    sum += GAUSSIAN_LOBE(6);
 #endif
 #if GAUSSIAN_K > 7
-    sum += GAUSSIAN_LOBE(7, b1.w);
+    sum += GAUSSIAN_LOBE(7);
 #endif
     return sum;
 }

@@ -2,16 +2,111 @@
 // (web/shaders/gaussian.glsl through gaussian.vert.glsl / gaussian.frag.glsl, assembled by shaders.js).
 //
 // Data are float16 bit patterns (Uint16Array), as stored: the material's lobes (per elevation and lobe: mu, sigma,
-// 0, 0 and w_r, w_g, w_b, 0), packed for the shader by packLobes into one RGBA16F texture (row = elevation:
-// (mu_k, sigma_k, w_r, w_g) per lobe, then the blue weights four to a texel; relight.gl.gaussian.pack_lobes), and
-// the chain's levels (one S x 2S RGBA lat-long map each, one size) as the slices of one RGBA16F 3-D texture
-// (LINEAR, REPEAT in u, CLAMP_TO_EDGE in v and across the levels, as relight.conventions.sample_latlong).
+// 0, 0 and w_r, w_g, w_b, 0), turned by lobeTable into the shader's lobe table (relight.gl.gaussian.LobeTable: a
+// row per elevation, or per row of an even grid through them, the float16 values two to a 32-bit word in one
+// RGBA32UI texture read with texelFetch), and the chain's levels (one S x 2S RGBA lat-long map each, one size) as
+// the slices of one RGBA16F 3-D texture (LINEAR, REPEAT in u, CLAMP_TO_EDGE in v and across the levels, as
+// relight.conventions.sample_latlong).
 
+import { halfToFloat, floatToHalf } from './half.js';
 import { build, loadSources } from './shaders.js';
 
-/** The shader's defines (relight.gl.gaussian.GaussianRenderer.defines). */
-export function gaussianDefines({ lobes, elevations, levels, sphere = false, linear = true }) {
-  const d = { GAUSSIAN_K: lobes, GAUSSIAN_N: elevations, GAUSSIAN_LEVELS: levels };
+/** relight.gl.gaussian.MAX_GRID_ROWS, GRID_SUBDIVISIONS, GRID_TOLERANCE. */
+export const MAX_GRID_ROWS = 1024;
+const GRID_SUBDIVISIONS = 16;
+const GRID_TOLERANCE = 1e-3;
+
+/**
+ * relight.gl.gaussian.lobe_grid: [theta0, step, rows] of the coarsest even grid with a row at every elevation
+ * (within GRID_TOLERANCE rows; step = the smallest gap / q, q = 1 ... GRID_SUBDIVISIONS), or null.
+ */
+export function lobeGrid(elevations) {
+  const e = elevations;
+  if (e.length < 2) {
+    return null;
+  }
+  let gap = Infinity;
+  for (let i = 1; i < e.length; i += 1) {
+    gap = Math.min(gap, e[i] - e[i - 1]);
+  }
+  const span = e[e.length - 1] - e[0];
+  for (let q = 1; q <= GRID_SUBDIVISIONS; q += 1) {
+    const rows = Math.round(span / (gap / q)) + 1;
+    if (rows > MAX_GRID_ROWS) {
+      return null;
+    }
+    const step = span / (rows - 1);
+    const onGrid = e.every((x) => {
+      const m = (x - e[0]) / step;
+      return Math.abs(m - Math.round(m)) <= GRID_TOLERANCE;
+    });
+    if (onGrid) {
+      return [e[0], step, rows];
+    }
+  }
+  return null;
+}
+
+/** RGBA32UI texels per row of the lobe table: 2 words per lobe and the blue weights two to a word. */
+export function lobeTexels(lobes) {
+  return Math.floor((2 * lobes + Math.floor((lobes + 1) / 2) + 3) / 4);
+}
+
+/**
+ * relight.gl.gaussian.LobeTable of `material` ({lobes K, elevations, shape, weight}): {lobes, rows, grid
+ * ([theta0, rows per radian] or null), elevations (the rows' theta_o), words (Uint32Array, rows x lobeTexels(K)
+ * RGBA texels: per row the halves mu_0, sigma_0, w_0.r, w_0.g, mu_1, ..., then w_0.b, ..., w_{K-1}.b, two to a
+ * word, low half first)}. The elevations are rounded to float32 and the values interpolated at the grid's rows
+ * exactly as GaussianLobes.params_at does, then rounded to float16.
+ */
+export function lobeTable(material) {
+  const k = material.lobes;
+  const e = Array.from(material.elevations, Math.fround);
+  const n = e.length;
+  const grid = lobeGrid(e);
+  const rows = grid ? grid[2] : n;
+  const at = grid ? Array.from({ length: rows }, (_, i) => grid[0] + grid[1] * i) : e;
+  const texels = lobeTexels(k);
+  const halves = new Uint16Array(rows * texels * 8);
+  for (let i = 0; i < rows; i += 1) {
+    const t = Math.min(Math.max(at[i], e[0]), e[n - 1]);
+    let j = 0;
+    while (j < n - 2 && e[j + 1] <= t) {
+      j += 1;
+    }
+    const f = n > 1 ? (t - e[j]) / (e[j + 1] - e[j]) : 0;
+    const nxt = n > 1 ? j + 1 : j;
+    // the value of one channel at row i: exact where f = 0 (the material's own row)
+    const lerp = (arr, l, c) => {
+      const a = arr[4 * (j * k + l) + c];
+      return f === 0 ? a : floatToHalf(halfToFloat(a) * (1 - f) + halfToFloat(arr[4 * (nxt * k + l) + c]) * f);
+    };
+    const row = i * texels * 8;
+    for (let l = 0; l < k; l += 1) {
+      halves[row + 4 * l] = lerp(material.shape, l, 0);
+      halves[row + 4 * l + 1] = lerp(material.shape, l, 1);
+      halves[row + 4 * l + 2] = lerp(material.weight, l, 0);
+      halves[row + 4 * l + 3] = lerp(material.weight, l, 1);
+      halves[row + 4 * k + l] = lerp(material.weight, l, 2);
+    }
+  }
+  return { lobes: k, rows, grid: grid ? [grid[0], 1 / grid[1]] : null, elevations: at,
+    words: new Uint32Array(halves.buffer) };
+}
+
+/** The shader's defines (relight.gl.gaussian.GaussianRenderer.defines) for a lobeTable and a chain of `levels`. */
+export function gaussianDefines({ table, levels, sphere = false, linear = true }) {
+  const d = { GAUSSIAN_K: table.lobes, GAUSSIAN_ROWS: table.rows };
+  if (table.grid) {
+    d.GAUSSIAN_GRID = null;
+  } else {
+    let step = table.rows > 2 ? 1 : 0; // the largest power of two <= rows - 2
+    while (step && 2 * step <= table.rows - 2) {
+      step *= 2;
+    }
+    d.GAUSSIAN_SEARCH_STEP = step;
+  }
+  d.GAUSSIAN_LEVELS = levels;
   if (linear) {
     d.OUTPUT_LINEAR = null;
   }
@@ -19,6 +114,11 @@ export function gaussianDefines({ lobes, elevations, levels, sphere = false, lin
     d.GAUSSIAN_SPHERE = null;
   }
   return d;
+}
+
+/** A key of the program a lobeTable needs (tables with one key share a program). */
+export function tableKey(table) {
+  return `${table.lobes}/${table.rows}/${table.grid ? 'grid' : 'search'}`;
 }
 
 function compile(gl, type, text) {
@@ -44,49 +144,18 @@ export async function gaussianProgram(gl, defines, base = 'shaders/') {
   return prog;
 }
 
-/**
- * Sampling of the bound lobe texture: LINEAR, CLAMP_TO_EDGE (gaussian.glsl interpolates the elevations with one
- * filtered lookup per texel).
- */
+/** Sampling of the bound lobe texture: NEAREST (an integer texture; gaussian.glsl reads it with texelFetch). */
 export function lobeSampling(gl) {
-  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
-  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
 }
 
-/** Texels per elevation of the packed lobe texture: one per lobe, then the blue weights four to a texel. */
-export function lobeTexels(lobes) {
-  return lobes + Math.floor((lobes + 3) / 4);
-}
-
-/**
- * The shader's lobe texture (float16 bits, N rows of lobeTexels(K) RGBA texels) from the material's `shape` and
- * `weight` (N * K * 4 each): texel k = (mu_k, sigma_k, w_k.r, w_k.g), then w_0.b, ..., w_{K-1}.b, zero-padded.
- */
-export function packLobes(material) {
-  const k = material.lobes;
-  const n = material.elevations.length;
-  const texels = lobeTexels(k);
-  const out = new Uint16Array(n * texels * 4);
-  for (let i = 0; i < n; i += 1) {
-    for (let l = 0; l < k; l += 1) {
-      const src = 4 * (i * k + l);
-      const dst = 4 * (i * texels + l);
-      out[dst] = material.shape[src];
-      out[dst + 1] = material.shape[src + 1];
-      out[dst + 2] = material.weight[src];
-      out[dst + 3] = material.weight[src + 1];
-      out[4 * (i * texels + k) + l] = material.weight[src + 2];
-    }
-  }
-  return out;
-}
-
-/** Upload the packed lobes of `material` into the bound 2-D texture. */
-export function uploadLobes(gl, material) {
-  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA16F, lobeTexels(material.lobes), material.elevations.length, 0, gl.RGBA,
-    gl.HALF_FLOAT, packLobes(material));
+/** Upload a lobeTable into the bound 2-D texture. */
+export function uploadLobes(gl, table) {
+  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32UI, lobeTexels(table.lobes), table.rows, 0, gl.RGBA_INTEGER,
+    gl.UNSIGNED_INT, table.words);
 }
 
 /**
@@ -116,8 +185,9 @@ export function uploadGaussian(gl, material, chain) {
   const lobes = gl.createTexture();
   gl.bindTexture(gl.TEXTURE_2D, lobes);
   lobeSampling(gl);
-  uploadLobes(gl, material);
-  return { lobes, chain: uploadChain(gl, chain), material, chainInfo: chain };
+  const table = lobeTable(material);
+  uploadLobes(gl, table);
+  return { lobes, chain: uploadChain(gl, chain), table, chainInfo: chain };
 }
 
 /**
@@ -153,7 +223,11 @@ export function bindGaussian(gl, prog, data) {
     gl.bindTexture(target, tex);
     gl.uniform1i(gl.getUniformLocation(prog, name), unit);
   });
-  gl.uniform1fv(gl.getUniformLocation(prog, 'u_elevations'), new Float32Array(data.material.elevations));
+  if (data.table.grid) {
+    gl.uniform2f(gl.getUniformLocation(prog, 'u_lobe_grid'), data.table.grid[0], data.table.grid[1]);
+  } else {
+    gl.uniform1fv(gl.getUniformLocation(prog, 'u_elevations'), new Float32Array(data.table.elevations));
+  }
   const c = data.chainInfo;
   gl.uniform1f(gl.getUniformLocation(prog, 'u_chain_sigma0'), c.sigma0);
   gl.uniform1f(gl.getUniformLocation(prog, 'u_chain_log_ratio'), c.levels.length > 1 ? Math.log(c.ratio) : 1.0);
@@ -177,10 +251,9 @@ export async function renderSphere(gl, material, chain, view, size, base = 'shad
   if (!gl.getExtension('EXT_color_buffer_float')) {
     throw new Error('EXT_color_buffer_float is not available');
   }
-  const prog = await gaussianProgram(gl, gaussianDefines({
-    lobes: material.lobes, elevations: material.elevations.length, levels: chain.levels.length, sphere: true,
-  }), base);
   const data = uploadGaussian(gl, material, chain);
+  const prog = await gaussianProgram(gl, gaussianDefines({ table: data.table, levels: chain.levels.length,
+    sphere: true }), base);
   bindGaussian(gl, prog, data);
   const len = Math.hypot(...view);
   const v = view.map((x) => x / len);

@@ -10,8 +10,8 @@
 // a float target, read back as linear radiance and shown through the CPU display transform (tonemap.js).
 // window.relight.gaussian exposes the state for tests: materials, current, edits, pixels(), requests.
 import {
-  bindGaussian, cameraBasis, chainFromLevels, gaussianDefines, gaussianProgram, lobeSampling, uploadChain,
-  uploadLobes,
+  bindGaussian, cameraBasis, chainFromLevels, gaussianDefines, gaussianProgram, lobeSampling, lobeTable, tableKey,
+  uploadChain, uploadLobes,
 } from './gaussian.js';
 import { floatToHalf, halfToFloat } from './half.js';
 import { tonemapImage } from './tonemap.js';
@@ -131,16 +131,16 @@ class GaussianView {
   /** Linear radiance of the sphere (Float32Array SIZE * SIZE * 4, row 0 at the bottom). */
   async draw(material) {
     const gl = this.gl;
-    const n = material.elevations.length;
-    const key = `${material.lobes}/${n}/${this.chain.levels.length}`;
+    const table = lobeTable(material); // an edit changes the values, never the program
+    const key = `${tableKey(table)}/${this.chain.levels.length}`;
     if (!this.programs.has(key)) {
       this.programs.set(key, await gaussianProgram(gl, gaussianDefines({
-        lobes: material.lobes, elevations: n, levels: this.chain.levels.length, sphere: true })));
+        table, levels: this.chain.levels.length, sphere: true })));
     }
     const prog = this.programs.get(key);
     gl.bindTexture(gl.TEXTURE_2D, this.lobes);
-    uploadLobes(gl, material);
-    bindGaussian(gl, prog, { lobes: this.lobes, chain: this.chainTex, material, chainInfo: this.chain });
+    uploadLobes(gl, table);
+    bindGaussian(gl, prog, { lobes: this.lobes, chain: this.chainTex, table, chainInfo: this.chain });
     const len = Math.hypot(...VIEW);
     const v = VIEW.map((x) => x / len);
     const [right, up] = cameraBasis(v);

@@ -14,7 +14,7 @@
 // (additive blending on the same geometry, drawn where the first part's depth is).
 import * as THREE from 'three';
 
-import { gaussianDefines, lobeTexels, packLobes } from './gaussian.js';
+import { gaussianDefines, lobeTable, lobeTexels } from './gaussian.js';
 import { InOutObject } from './inout_object.js';
 import { PrtObject } from './prt_object.js';
 import { build } from './shaders.js';
@@ -25,13 +25,13 @@ import { latlongHalfTexture, objectViewDirection } from './shrm_object.js';
 export { partGeometry } from './scene_part_base.js';
 export { PrtMatrixPart, ShTablePart, tableRgba } from './scene_table_parts.js';
 
-/** gaussian.glsl's u_lobes: the material's lobes packed (gaussian.js packLobes), one row per elevation. */
-function lobeTexture(material) {
-  const tex = new THREE.DataTexture(packLobes(material), lobeTexels(material.lobes), material.elevations.length,
-    THREE.RGBAFormat, THREE.HalfFloatType);
-  tex.internalFormat = 'RGBA16F';
-  tex.minFilter = THREE.LinearFilter; // gaussian.glsl: one filtered lookup interpolates the elevations
-  tex.magFilter = THREE.LinearFilter;
+/** gaussian.glsl's u_lobes: the material's lobe table (gaussian.js lobeTable), RGBA32UI read with texelFetch. */
+function lobeTexture(table) {
+  const tex = new THREE.DataTexture(table.words, lobeTexels(table.lobes), table.rows, THREE.RGBAIntegerFormat,
+    THREE.UnsignedIntType);
+  tex.internalFormat = 'RGBA32UI';
+  tex.minFilter = THREE.NearestFilter;
+  tex.magFilter = THREE.NearestFilter;
   tex.wrapS = THREE.ClampToEdgeWrapping;
   tex.wrapT = THREE.ClampToEdgeWrapping;
   tex.generateMipmaps = false;
@@ -49,13 +49,13 @@ export class GaussianPart extends Part {
     super(viewer, item);
     this.representation = 'gaussian_lobes';
     const { material, chain } = item;
-    const n = material.elevations.length;
+    const table = lobeTable(material);
     const rgba = new Uint16Array(chain.levels.length * chain.height * chain.width * 4);
     chain.levels.forEach((lv, j) => rgba.set(lv, j * chain.height * chain.width * 4));
     // the levels as the slices of a 3-D texture, filtered across them too (gaussian.glsl, gaussian.js uploadChain)
     const chainTex = latlongHalfTexture(new THREE.Data3DTexture(rgba, chain.width, chain.height, chain.levels.length));
     chainTex.wrapR = THREE.ClampToEdgeWrapping;
-    this.textures = [lobeTexture(material), chainTex];
+    this.textures = [lobeTexture(table), chainTex];
     const shared = viewer.uniforms;
     this.uniforms = {
       u_view_projection: shared.u_view_projection,
@@ -66,12 +66,12 @@ export class GaussianPart extends Part {
       u_view_direction: { value: new THREE.Vector3(0, 0, 1) },
       u_lobes: { value: this.textures[0] },
       u_chain: { value: this.textures[1] },
-      u_elevations: { value: Array.from(material.elevations) },
+      ...(table.grid ? { u_lobe_grid: { value: new THREE.Vector2(...table.grid) } }
+        : { u_elevations: { value: Array.from(table.elevations) } }),
       u_chain_sigma0: { value: chain.sigma0 },
       u_chain_log_ratio: { value: chain.levels.length > 1 ? Math.log(chain.ratio) : 1.0 },
     };
-    this.defines = { ...gaussianDefines({ lobes: material.lobes, elevations: n, levels: chain.levels.length,
-      linear: false }), GAUSSIAN_MODEL: null };
+    this.defines = { ...gaussianDefines({ table, levels: chain.levels.length, linear: false }), GAUSSIAN_MODEL: null };
     this.added = !!item.added;
     this._materials = new Map();
     this.mesh = new THREE.Mesh(partGeometry(item.geometry), this.material('display'));
