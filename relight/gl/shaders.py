@@ -153,11 +153,7 @@ def build(
     lines = [_format_define(k, v) for k, v in (defines or {}).items()]
     seen: set[str] = set()
     body = _expand(name, read, seen)
-    head = header(target)
-    if target == "330" and "unpackHalf2x16" in body:
-        # core in GLSL ES 3.00 and GLSL 4.20; in 3.30 an extension every Mesa and desktop driver has
-        head += "#extension GL_ARB_shading_language_packing : require\n"
-    return head + "".join(line + "\n" for line in lines) + body
+    return header(target) + "".join(line + "\n" for line in lines) + body
 
 
 def _read_file(name: str) -> str:

@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 from relight import resources
+from relight.brdf.gaussian_lobes import GaussianLobes
 from relight.brdf.models import TorranceSparrow
 from relight.envmap import read_envmap, resample_latlong
 from relight.gaussian_chain import build_chain
-from relight.gl.gaussian import half_chain, half_material
+from relight.gl.gaussian import LobeTable, half_chain, half_material
 from relight.sg_render import render_sphere_gaussian
 from relight.sgfit import FitSettings, fit_gaussian_lobes
 
@@ -38,10 +39,18 @@ def _bits(a: np.ndarray) -> list[int]:
     return [int(x) for x in np.ascontiguousarray(a, dtype=np.float16).view(np.uint16).ravel()]
 
 
-def test_gaussian_sphere_matches_the_cpu(page: Any) -> None:
+@pytest.mark.parametrize("uneven", [False, True], ids=["grid", "bisection"])
+def test_gaussian_sphere_matches_the_cpu(page: Any, uneven: bool) -> None:
+    """Both of the shader's ways to its lobe-table rows: the fit's elevations lie on an even grid (one multiply);
+    the same lobes at elevations on no grid are bisected (``LobeTable``)."""
     env = read_envmap(resources.package_dir(resources.DATA, "envmaps", "sunset.exr"))
     px = np.asarray(resample_latlong(np.asarray(env.pixels, dtype=np.float64), 32), dtype=np.float64)
-    mat = half_material(fit_gaussian_lobes(TorranceSparrow(0.2, fresnel="none"), FitSettings(elevations=5)))
+    fit = fit_gaussian_lobes(TorranceSparrow(0.2, fresnel="none"), FitSettings(elevations=5))
+    if uneven:
+        at = np.array([0.0, 0.1234567, 0.5, 0.61, 0.9, 1.3, 1.5])
+        fit = GaussianLobes(at, *fit.params_at(at))
+    assert (LobeTable(fit).grid is None) == uneven
+    mat = half_material(fit)
     chain = half_chain(build_chain(px, sigma0=math.pi / 64, ratio=math.sqrt(2), epsilon=1e-4, uniform_size=True))
     k, n = mat.n_lobes, mat.elevations.size
     shape = np.zeros((n, k, 4))

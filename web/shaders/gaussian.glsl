@@ -8,7 +8,7 @@
 // Data, all float16 as stored (the paper's Fig. 3 layout; relight.gl.gaussian.lobe_table, web/src/gaussian.js
 // lobeTable):
 //   u_lobes        RGBA32UI, GAUSSIAN_LOBE_TEXELS x ROWS texels, NEAREST (read with texelFetch): row i holds the
-//                  lobes at elevation theta_i as float16 pairs (unpackHalf2x16: low half first), word 2k =
+//                  lobes at elevation theta_i as float16 pairs (low half first; gaussian_halves), word 2k =
 //                  (mu_k, sigma_k), word 2k + 1 = (w_k.r, w_k.g), then word 2K + k / 2 holds w_k.b (low half for
 //                  even k); radians, w the lobe's integral. The rows are the material's elevations, or -- when
 //                  those lie on an even grid of at most relight.gl.gaussian.MAX_GRID_ROWS rows -- every row of that
@@ -188,21 +188,40 @@ vec3 gaussian_lobe(vec4 a, float wb, vec3 r, vec3 e) {
     return term;
 }
 
-// Word w (a constant) of a row held as the texels a[0], a[1], ...; lobe k's (mu, sigma, w.r, w.g) and w.b.
-#define GAUSSIAN_WORD(a, w) a[(w) / 4][(w) % 4]
-#define GAUSSIAN_HALVES(a, w) unpackHalf2x16(GAUSSIAN_WORD(a, w))
-#define GAUSSIAN_PARAMS(a, k) vec4(GAUSSIAN_HALVES(a, 2 * (k)), GAUSSIAN_HALVES(a, 2 * (k) + 1))
-#define GAUSSIAN_BLUE(a, k) GAUSSIAN_HALVES(a, 2 * GAUSSIAN_K + (k) / 2)[(k) % 2]
+// The float16 values in the low 16 bits of h's components, exactly for every finite value (the table holds no
+// infinity or NaN: GaussianLobes validates them): normal halves by re-biasing the exponent, subnormal ones as
+// m 2^-24. The built-in unpack of half pairs (GLSL ES 3.00, desktop 4.20) cost twice as much on llvmpipe.
+vec4 gaussian_halves(uvec4 h) {
+    uvec4 m = h & 0x7fffu;
+    vec4 v = uintBitsToFloat(m * 8192u + 0x38000000u);
+    v = mix(v, vec4(m) * 5.960464477539063e-08, lessThan(m, uvec4(0x400u)));
+    return mix(v, -v, notEqual(h & 0x8000u, uvec4(0u)));
+}
+
+// A row as the float values of its words' low halves (L[t]) and high halves (H[t]) per texel t. Lobe k's (mu, sigma, w.r, w.g) are the halves of words 2k and 2k + 1
+// (texel k / 2, components x, y for even k and z, w for odd k); its w.b is the low (even k) or high (odd k) half
+// of word 2K + k / 2. (No ## pasting: GLSL ES has none.)
+#define GAUSSIAN_PAIR(L, H, t, c1, c2) vec4(L[t].c1, H[t].c1, L[t].c2, H[t].c2)
+#define GAUSSIAN_EVEN(L, H, k) GAUSSIAN_PAIR(L, H, (k) / 2, x, y)
+#define GAUSSIAN_ODD(L, H, k) GAUSSIAN_PAIR(L, H, (k) / 2, z, w)
+#define GAUSSIAN_PARAMS(L, H, k) ((k) % 2 == 0 ? GAUSSIAN_EVEN(L, H, k) : GAUSSIAN_ODD(L, H, k))
+#define GAUSSIAN_BLUE_WORD(k) (2 * GAUSSIAN_K + (k) / 2)
+#define GAUSSIAN_BLUE_OF(B, k) B[GAUSSIAN_BLUE_WORD(k) / 4][GAUSSIAN_BLUE_WORD(k) % 4]
+#define GAUSSIAN_BLUE(L, H, k) ((k) % 2 == 0 ? GAUSSIAN_BLUE_OF(L, k) : GAUSSIAN_BLUE_OF(H, k))
 // Lobe k (a literal): its row values interpolated between rows j (lo) and j + 1 (hi).
-#define GAUSSIAN_LOBE_PARAMS(k) mix(GAUSSIAN_PARAMS(lo, k), GAUSSIAN_PARAMS(hi, k), f)
-#define GAUSSIAN_LOBE_BLUE(k) mix(GAUSSIAN_BLUE(lo, k), GAUSSIAN_BLUE(hi, k), f)
+#define GAUSSIAN_LOBE_PARAMS(k) mix(GAUSSIAN_PARAMS(loL, loH, k), GAUSSIAN_PARAMS(hiL, hiH, k), f)
+#define GAUSSIAN_LOBE_BLUE(k) mix(GAUSSIAN_BLUE(loL, loH, k), GAUSSIAN_BLUE(hiL, hiH, k), f)
 #ifdef GAUSSIAN_VISIBILITY
 #define GAUSSIAN_LOBE(k) gaussian_lobe(GAUSSIAN_LOBE_PARAMS(k), GAUSSIAN_LOBE_BLUE(k), r, e, vis)
 #else
 #define GAUSSIAN_LOBE(k) gaussian_lobe(GAUSSIAN_LOBE_PARAMS(k), GAUSSIAN_LOBE_BLUE(k), r, e)
 #endif
-// Texel i (a literal) of rows j and j + 1.
-#define GAUSSIAN_FETCH(i) lo[i] = texelFetch(u_lobes, ivec2(i, j), 0); hi[i] = texelFetch(u_lobes, ivec2(i, j1), 0)
+// Texel i (a literal) of rows j (lo) and j + 1 (hi), fetched and unpacked (written out: a function with out
+// parameters into the arrays cost 4 % of the frame on llvmpipe).
+#define GAUSSIAN_FETCH_LO(i) lo = texelFetch(u_lobes, ivec2(i, j), 0); hi = texelFetch(u_lobes, ivec2(i, j1), 0)
+#define GAUSSIAN_UNPACK_LO(i) loL[i] = gaussian_halves(lo & 0xffffu); loH[i] = gaussian_halves(lo >> 16)
+#define GAUSSIAN_UNPACK_HI(i) hiL[i] = gaussian_halves(hi & 0xffffu); hiH[i] = gaussian_halves(hi >> 16)
+#define GAUSSIAN_FETCH(i) GAUSSIAN_FETCH_LO(i); GAUSSIAN_UNPACK_LO(i); GAUSSIAN_UNPACK_HI(i)
 
 // Outgoing radiance toward the unit view v at the unit normal n: eq. 5, or eq. 7 with the point's visibility.
 // The lobes are written out one by one (K <= 8, relight.sgfit's max_lobes) with no branch on a dead lobe (its
@@ -221,8 +240,12 @@ vec3 gaussian_shade(vec3 n, vec3 v) {
     float f;
     gaussian_interval(acos(ndv), j, f);
     int j1 = min(j + 1, GAUSSIAN_ROWS - 1);
-    uvec4 lo[GAUSSIAN_LOBE_TEXELS];
-    uvec4 hi[GAUSSIAN_LOBE_TEXELS];
+    uvec4 lo;
+    uvec4 hi;
+    vec4 loL[GAUSSIAN_LOBE_TEXELS];
+    vec4 loH[GAUSSIAN_LOBE_TEXELS];
+    vec4 hiL[GAUSSIAN_LOBE_TEXELS];
+    vec4 hiH[GAUSSIAN_LOBE_TEXELS];
     GAUSSIAN_FETCH(0);
 #if GAUSSIAN_LOBE_TEXELS > 1
     GAUSSIAN_FETCH(1);

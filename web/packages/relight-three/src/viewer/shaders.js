@@ -89,11 +89,7 @@ function expand(name, read, seen) {
  */
 export function build(name, { target = '300 es', defines = {}, read }) {
   const lines = Object.entries(defines).map(([k, v]) => `${formatDefine(k, v)}\n`);
-  const body = expand(name, read, new Set());
-  // relight.gl.shaders.build: unpackHalf2x16 is core in GLSL ES 3.00, an extension in 3.30
-  const ext = target === '330' && body.includes('unpackHalf2x16')
-    ? '#extension GL_ARB_shading_language_packing : require\n' : '';
-  return header(target) + ext + lines.join('') + body;
+  return header(target) + lines.join('') + expand(name, read, new Set());
 }
 
 /** Fetch shader files (with everything they include) from `base`; returns a read function for build(). */
