@@ -287,6 +287,10 @@ def test_scheduler_killed_at(point: str, external: dict[str, object], data_tmp: 
     start_scheduler, start_worker = external["start_scheduler"], external["start_worker"]
     assert callable(start_scheduler) and callable(start_worker)
     with server.client() as c:
+        # both workers on this scheduler before it dies: the previous case restarted them, and its job may have
+        # finished on one of them while the other was still starting (that one then joined the *next* scheduler
+        # on the same address and never exited)
+        wait_until(lambda: c.health().workers == 2, 90, "both workers to join the scheduler", interval=0.2)
         exr = exr_bytes(make_envmap(32, seed=300 + POINTS.index(point)), data_tmp)
         env = c.upload_envmap(exr)
         before = blobs(data)
