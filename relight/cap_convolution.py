@@ -334,6 +334,16 @@ def _sub_offsets(dph: float, max_sub: int) -> tuple[FloatArray, FloatArray]:
     return off_c, off_s
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def taps_rgb(env: FloatArray, y0: int, y1: int, x0: int, x1: int, w00: float, w01: float, w10: float,
+             w11: float) -> tuple[float, float, float]:
+    """The four texels (y0 | y1, x0 | x1) of an RGB map weighted by w00, w01, w10, w11, per channel (a bilinear
+    tap; the chain's level 0 and the near sum share it)."""
+    return (w00 * env[y0, x0, 0] + w01 * env[y0, x1, 0] + w10 * env[y1, x0, 0] + w11 * env[y1, x1, 0],
+            w00 * env[y0, x0, 1] + w01 * env[y0, x1, 1] + w10 * env[y1, x0, 1] + w11 * env[y1, x1, 1],
+            w00 * env[y0, x0, 2] + w01 * env[y0, x1, 2] + w10 * env[y1, x0, 2] + w11 * env[y1, x1, 2])
+
+
 @numba.njit(cache=True, nogil=True)
 def _near_one(th: float, ph: float, env: FloatArray, means: FloatArray, cos_col: FloatArray, sin_col: FloatArray,
               table: FloatArray, fine: FloatArray, chord_max: float, theta_star: float, hw_angle: float,
@@ -447,12 +457,10 @@ def _near_one(th: float, ph: float, env: FloatArray, means: FloatArray, cos_col:
                         st[y1 - row0, x0] += w10
                         st[y1 - row0, x1] += w11
                     else:
-                        acc0 += (w00 * env[y0, x0, 0] + w01 * env[y0, x1, 0]
-                                 + w10 * env[y1, x0, 0] + w11 * env[y1, x1, 0])
-                        acc1 += (w00 * env[y0, x0, 1] + w01 * env[y0, x1, 1]
-                                 + w10 * env[y1, x0, 1] + w11 * env[y1, x1, 1])
-                        acc2 += (w00 * env[y0, x0, 2] + w01 * env[y0, x1, 2]
-                                 + w10 * env[y1, x0, 2] + w11 * env[y1, x1, 2])
+                        t0, t1, t2 = taps_rgb(env, y0, y1, x0, x1, w00, w01, w10, w11)
+                        acc0 += t0
+                        acc1 += t1
+                        acc2 += t2
     acc[0], acc[1], acc[2] = acc0, acc1, acc2
     return wsum
 

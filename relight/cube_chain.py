@@ -53,7 +53,7 @@ from relight.brdf.base import RadialLobe
 from relight.brdf.coefficients import radial_transfer, spectrum_for_tolerance
 from relight.brdf.normal_view import ChainBrdf, ChannelLobe
 from relight.brdf.splitsum import MIN_ROUGHNESS, GGXSplitSum
-from relight.cap_convolution import WindowedLobe, angular_convolution, cell_means
+from relight.cap_convolution import WindowedLobe, angular_convolution, cell_means, taps_rgb
 from relight.conventions import (
     dirs_to_angles,
     require_rgb_latlong,
@@ -136,12 +136,10 @@ def _mirror_jit(env: FloatArray, size: int, axes: FloatArray, out: FloatArray) -
                         x1 = (x0 + 1) % w
                         w00, w01 = (1.0 - fx) * (1.0 - fy), fx * (1.0 - fy)
                         w10, w11 = (1.0 - fx) * fy, fx * fy
-                        acc0 += (w00 * env[y0, x0, 0] + w01 * env[y0, x1, 0]
-                                 + w10 * env[y1, x0, 0] + w11 * env[y1, x1, 0])
-                        acc1 += (w00 * env[y0, x0, 1] + w01 * env[y0, x1, 1]
-                                 + w10 * env[y1, x0, 1] + w11 * env[y1, x1, 1])
-                        acc2 += (w00 * env[y0, x0, 2] + w01 * env[y0, x1, 2]
-                                 + w10 * env[y1, x0, 2] + w11 * env[y1, x1, 2])
+                        t0, t1, t2 = taps_rgb(env, y0, y1, x0, x1, w00, w01, w10, w11)
+                        acc0 += t0
+                        acc1 += t1
+                        acc2 += t2
                 n = (f * size + r) * size + c
                 out[n, 0], out[n, 1], out[n, 2] = 0.25 * acc0, 0.25 * acc1, 0.25 * acc2
 

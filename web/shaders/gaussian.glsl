@@ -5,7 +5,7 @@
 // GAUSSIAN_GRID (the rows are evenly spaced in theta_o) or GAUSSIAN_SEARCH_STEP (the largest power of two
 // <= GAUSSIAN_ROWS - 2, or 0: the rows are the material's own, unevenly spaced elevations); with
 // GAUSSIAN_VISIBILITY also VIS_MODE (VIS_AO, VIS_SH or VIS_SH_LOBE below) and SH_ORDER <= 3 (the visibility's order).
-// Data, all float16 as stored (the paper's Fig. 3 layout; relight.gl.gaussian.lobe_table, web/src/gaussian.js
+// Data, all float16 as stored (the paper's Fig. 3 layout; relight.gl.gaussian.LobeTable, web/src/gaussian.js
 // lobeTable):
 //   u_lobes        RGBA32UI, GAUSSIAN_LOBE_TEXELS x ROWS texels, NEAREST (read with texelFetch): row i holds the
 //                  lobes at elevation theta_i as float16 pairs (low half first; gaussian_halves), word 2k =
@@ -76,10 +76,6 @@ vec3 gaussian_axis(vec3 n, vec3 r) {
     vec3 e = n - dot(n, r) * r;
     float len = length(e);
     return len > 1e-6 ? e / len : normalize(cross(r, abs(r.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
-}
-
-vec3 gaussian_centre(vec3 n, vec3 r, float mu) {
-    return cos(mu) * r + sin(mu) * gaussian_axis(n, r);
 }
 
 // (G_sigma * L)(d) from the chain: one trilinear lookup. The levels are the slices of a 3-D texture (LINEAR in all
